@@ -1,0 +1,84 @@
+// mskseg: one program, many subcommands. Turns every error into one line on stderr and an exit code:
+// 0 ok, 1 failure (bad input, I/O), 2 usage error (bad command line or parameter).
+#include <cstdio>
+#include <exception>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "commands.h"
+#include "msk/core/error.h"
+#include "msk/core/log.h"
+
+namespace {
+
+struct Command {
+  std::function<int(const std::vector<std::string>&)> run;
+  const char* summary;
+};
+
+const std::map<std::string, Command>& commands() {
+  static const std::map<std::string, Command> table = {
+      {"info", {msk::cli::cmdInfo, "describe a NIfTI volume: dims, spacing, affine and its source, datatype, range"}},
+  };
+  return table;
+}
+
+void printHelp() {
+  std::cout << "mskseg " << MSK_VERSION
+            << ": segment bones and muscles in MRI/CT volumes with deformable simplex meshes\n\n"
+               "usage: mskseg <command> [options]     (mskseg <command> --help for its options)\n\ncommands:\n";
+  for (const auto& kv : commands()) std::printf("  %-10s %s\n", kv.first.c_str(), kv.second.summary);
+  std::cout << "\nglobal options: --help, --version, --quiet (warnings and errors only), --verbose\n"
+               "exit codes: 0 ok, 1 failure (bad input or I/O), 2 usage error\n"
+               "world coordinates: NIfTI RAS mm internally; mesh files LPS with a SPACE tag unless --mesh-space ras\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  msk::LogLevel level = msk::LogLevel::Info;
+  std::vector<std::string> rest;
+  for (const auto& a : args) {
+    if (a == "--quiet") level = msk::LogLevel::Warn;
+    else if (a == "--verbose") level = msk::LogLevel::Debug;
+    else rest.push_back(a);
+  }
+  msk::log::setLevel(level);
+  msk::log::setSink([](msk::LogLevel l, const std::string& m) {
+    static const char* names[] = {"debug", "info", "warning", "error"};
+    std::cerr << "mskseg: " << names[static_cast<int>(l)] << ": " << m << std::endl;
+  });
+  if (rest.empty() || rest[0] == "--help" || rest[0] == "-h" || rest[0] == "help") {
+    printHelp();
+    return rest.empty() ? 2 : 0;
+  }
+  if (rest[0] == "--version") {
+    std::cout << "mskseg " << MSK_VERSION << "\n";
+    return 0;
+  }
+  auto it = commands().find(rest[0]);
+  if (it == commands().end()) {
+    std::cerr << "mskseg: error: unknown command '" << rest[0] << "' (see mskseg --help)\n";
+    return 2;
+  }
+  try {
+    return it->second.run(std::vector<std::string>(rest.begin() + 1, rest.end()));
+  } catch (const msk::cli::UsageError& e) {
+    std::cerr << "mskseg " << rest[0] << ": usage error: " << e.what() << " (see mskseg " << rest[0] << " --help)\n";
+    return 2;
+  } catch (const msk::ParameterError& e) {
+    std::cerr << "mskseg " << rest[0] << ": usage error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "mskseg " << rest[0] << ": error: out of memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "mskseg " << rest[0] << ": error: " << e.what() << "\n";
+    return 1;
+  }
+}

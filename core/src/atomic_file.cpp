@@ -1,0 +1,63 @@
+#include "msk/core/atomic_file.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <filesystem>
+#include <system_error>
+
+#include <unistd.h>
+
+#include "msk/core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace msk {
+
+std::string fileExtension(const std::string& path) {
+  std::string name = fs::path(path).filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+  auto dot = name.rfind('.');
+  if (dot == std::string::npos || dot == 0) return "";
+  std::string ext = name.substr(dot);
+  if (ext == ".gz") {
+    auto dot2 = name.rfind('.', dot - 1);
+    if (dot2 != std::string::npos && dot2 != 0) ext = name.substr(dot2);
+  }
+  return ext;
+}
+
+AtomicFile::AtomicFile(std::string target) : target_(std::move(target)) {
+  static std::atomic<unsigned> counter{0};
+  fs::path t(target_);
+  fs::path dir = t.has_parent_path() ? t.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw IoError(target_, "output folder does not exist");
+  std::string ext = fileExtension(target_);
+  std::string stem = t.filename().string();
+  stem = stem.substr(0, stem.size() - ext.size());
+  temp_ = (dir / ("." + stem + ".tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ext)).string();
+}
+
+AtomicFile::~AtomicFile() {
+  if (!committed_) {
+    std::error_code ec;
+    fs::remove(temp_, ec);
+  }
+}
+
+void AtomicFile::commit() {
+  std::error_code ec;
+  if (!fs::exists(temp_, ec)) throw IoError(target_, "writer produced no output");
+  fs::rename(temp_, target_, ec);
+  if (ec) throw IoError(target_, "cannot move the finished file into place: " + ec.message());
+  committed_ = true;
+}
+
+void writeAtomically(const std::string& target, const std::function<void(const std::string&)>& write) {
+  AtomicFile f(target);
+  write(f.tempPath());
+  f.commit();
+}
+
+}  // namespace msk

@@ -1,0 +1,1 @@
+#include "msk/imaging/nifti_io.h"

@@ -1,0 +1,1 @@
+#include "msk/segmentation/metrics.h"
