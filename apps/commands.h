@@ -1,9 +1,27 @@
 #pragma once
 // The subcommands: each takes its arguments (after the command name) and returns the exit code.
+#include <functional>
 #include <string>
 #include <vector>
 
+#include "msk/core/log.h"
+
 namespace msk::cli {
-/// mskseg info IMAGE
+/// mskseg info FILE: a NIfTI volume's geometry and values, or a mesh file's summary.
 int cmdInfo(const std::vector<std::string>& args);
+/// mskseg phantom: synthetic thigh MRI with ground truth.
+int cmdPhantom(const std::vector<std::string>& args);
+/// mskseg eval: metrics between label maps or meshes.
+int cmdEval(const std::vector<std::string>& args);
+/// mskseg rasterize: closed mesh → label map on an image's grid.
+int cmdRasterize(const std::vector<std::string>& args);
+/// mskseg convert: mesh formats and spaces.
+int cmdConvert(const std::vector<std::string>& args);
+
+/// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
+ProgressFn stderrProgress(const std::string& task);
+
+/// Writes into a staging folder beside `dir`, then moves the files into `dir` (created if needed); on error the
+/// staging folder is removed and nothing appears in `dir`.
+void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string& staging)>& write);
 }  // namespace msk::cli

@@ -22,7 +22,11 @@ struct Command {
 
 const std::map<std::string, Command>& commands() {
   static const std::map<std::string, Command> table = {
-      {"info", {msk::cli::cmdInfo, "describe a NIfTI volume: dims, spacing, affine and its source, datatype, range"}},
+      {"info", {msk::cli::cmdInfo, "describe a NIfTI volume (geometry, affine source, datatype, range) or a mesh"}},
+      {"phantom", {msk::cli::cmdPhantom, "generate a synthetic thigh MRI with exact ground truth"}},
+      {"eval", {msk::cli::cmdEval, "Dice, Jaccard, ASSD, HD95, Hausdorff between label maps or meshes"}},
+      {"rasterize", {msk::cli::cmdRasterize, "closed mesh -> label map on an image's grid"}},
+      {"convert", {msk::cli::cmdConvert, "convert meshes between .vtk .vtp .stl .obj .ply and LPS/RAS"}},
   };
   return table;
 }

@@ -1,0 +1,181 @@
+// End-to-end tests of the mskseg program: exit codes, one-line errors naming the file, no partial output.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "msk/core/json.h"
+#include "msk/core/triangle_mesh.h"
+#include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using msk::test::CliResult;
+using msk::test::runCli;
+using msk::test::ScratchDir;
+
+namespace {
+int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+// A failing command: the expected exit code, exactly one line on stderr naming `file` and containing `phrase`.
+void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase) {
+  EXPECT_EQ(r.exitCode, code) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
+  if (!file.empty()) EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(phrase), std::string::npos) << "wanted '" << phrase << "' in: " << r.err;
+}
+
+msk::Volume<double> smallVolume() {
+  msk::Grid g;
+  g.dims = {6, 5, 4};
+  g.spacing = {1.0, 1.5, 2.0};
+  g.origin = {-3, 4, 5};
+  msk::Volume<double> v(g, 0.0);
+  for (size_t i = 0; i < v.data.size(); ++i) v.data[i] = static_cast<double>(i % 17);
+  return v;
+}
+}  // namespace
+
+TEST(Cli, HelpVersionAndUsageErrors) {
+  CliResult h = runCli({"--help"});
+  EXPECT_EQ(h.exitCode, 0);
+  for (const char* c : {"info", "phantom", "eval", "rasterize", "convert"}) EXPECT_NE(h.out.find(c), std::string::npos);
+  CliResult v = runCli({"--version"});
+  EXPECT_EQ(v.exitCode, 0);
+  EXPECT_NE(v.out.find(MSK_VERSION), std::string::npos);
+  EXPECT_EQ(runCli({}).exitCode, 2);
+  expectOneLineError(runCli({"frobnicate"}), 2, "", "unknown command");
+  expectOneLineError(runCli({"info", "--bogus", "x"}), 2, "", "unknown option --bogus");
+  expectOneLineError(runCli({"phantom", "--seed", "1"}), 2, "", "missing required option --out");
+  expectOneLineError(runCli({"phantom", "--out", "/tmp/x", "--noise", "abc"}), 2, "", "--noise");
+  for (const char* c : {"info", "phantom", "eval", "rasterize", "convert"}) EXPECT_EQ(runCli({c, "--help"}).exitCode, 0);
+}
+
+TEST(Cli, InfoDescribesVolumeAndMesh) {
+  ScratchDir dir;
+  msk::writeNifti(dir.file("v.nii.gz"), smallVolume(), msk::DataType::Int16);
+  CliResult r = runCli({"info", dir.file("v.nii.gz")});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.out.find("6 x 5 x 4"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("int16"), std::string::npos);
+  EXPECT_NE(r.out.find("sform"), std::string::npos);
+  CliResult j = runCli({"info", "--json", dir.file("v.nii.gz")});
+  ASSERT_EQ(j.exitCode, 0) << j.err;
+  msk::Json info = msk::Json::parse(j.out);
+  EXPECT_EQ(info.at("dims").asArray()[2].asInt(), 4);
+  EXPECT_DOUBLE_EQ(info.at("spacing_mm").asArray()[1].asNumber(), 1.5);
+  EXPECT_DOUBLE_EQ(info.at("max").asNumber(), 16.0);
+  EXPECT_EQ(info.at("nonfinite_count").asInt(), 0);
+
+  msk::writeMesh(dir.file("s.vtk"), msk::makeIcosphere(10, 3));
+  CliResult m = runCli({"info", "--json", dir.file("s.vtk")});
+  ASSERT_EQ(m.exitCode, 0) << m.err;
+  msk::Json mj = msk::Json::parse(m.out);
+  EXPECT_EQ(mj.at("file_space").asString(), "LPS");
+  EXPECT_NEAR(mj.at("volume_mm3").asNumber(), 4.0 / 3.0 * M_PI * 1000, 0.02 * 4.0 / 3.0 * M_PI * 1000);
+}
+
+TEST(Cli, InfoOnRealCtGivesTheRightOrigin) {
+  if (msk::test::sharedData().empty()) GTEST_SKIP() << "../shared/data absent";
+  CliResult r = runCli({"info", "--json", msk::test::sharedData() + "/totalseg-ct/ct.nii.gz"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  msk::Json j = msk::Json::parse(r.out);
+  const auto& o = j.at("origin_ras_mm").asArray();
+  EXPECT_NEAR(o[0].asNumber(), -177.96, 0.01);
+  EXPECT_NEAR(o[1].asNumber(), 11.32, 0.01);
+  EXPECT_NEAR(o[2].asNumber(), 94.30, 0.01);
+}
+
+TEST(Cli, BadVolumesGiveOneLineNamingTheFile) {
+  ScratchDir dir;
+  expectOneLineError(runCli({"info", dir.file("missing.nii.gz")}), 1, "missing.nii.gz", "missing.nii.gz");
+  msk::test::writeBytes(dir.file("text.nii"), std::string(400, 'x'));
+  CliResult magic = runCli({"info", dir.file("text.nii")});
+  EXPECT_EQ(magic.exitCode, 1);
+  EXPECT_EQ(lineCount(magic.err), 1) << magic.err;
+  EXPECT_NE(magic.err.find("text.nii"), std::string::npos);
+
+  msk::writeNifti(dir.file("good.nii.gz"), smallVolume(), msk::DataType::Float32);
+  std::string gz = msk::test::readBytes(dir.file("good.nii.gz"));
+  msk::test::writeBytes(dir.file("cut.nii.gz"), gz.substr(0, gz.size() / 2));
+  CliResult cut = runCli({"info", dir.file("cut.nii.gz")});
+  EXPECT_EQ(cut.exitCode, 1);
+  EXPECT_EQ(lineCount(cut.err), 1) << cut.err;
+  EXPECT_NE(cut.err.find("cut.nii.gz"), std::string::npos);
+
+  msk::Volume<double> nan = smallVolume();
+  nan.data[3] = NAN;
+  msk::writeNifti(dir.file("nan.nii"), nan, msk::DataType::Float32);
+  // info reports NaNs (it is the tool to find them); eval refuses them.
+  CliResult ni = runCli({"info", "--json", dir.file("nan.nii")});
+  ASSERT_EQ(ni.exitCode, 0) << ni.err;
+  EXPECT_EQ(msk::Json::parse(ni.out).at("nonfinite_count").asInt(), 1);
+  CliResult ne = runCli({"eval", "--result", dir.file("nan.nii"), "--reference", dir.file("good.nii.gz")});
+  expectOneLineError(ne, 1, "nan.nii", "NaN");
+}
+
+TEST(Cli, ConvertRoundTripsAndRefusesOpenMeshes) {
+  ScratchDir dir;
+  msk::TriangleMesh s = msk::makeIcosphere(8, 3, {10, -20, 30});
+  msk::writeMesh(dir.file("s.vtk"), s);
+  CliResult c = runCli({"convert", dir.file("s.vtk"), dir.file("s.ply"), "--mesh-space", "ras"});
+  ASSERT_EQ(c.exitCode, 0) << c.err;
+  msk::MeshSpace sp = msk::MeshSpace::LPS;
+  msk::TriangleMesh back = msk::readMesh(dir.file("s.ply"), &sp);
+  EXPECT_EQ(sp, msk::MeshSpace::RAS);
+  EXPECT_LT((back.vertices - s.vertices).cwiseAbs().maxCoeff(), 1e-4);
+
+  msk::test::writeBytes(dir.file("open.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\n");
+  CliResult open = runCli({"convert", dir.file("open.obj"), dir.file("open.vtk")});
+  EXPECT_EQ(open.exitCode, 1);
+  EXPECT_EQ(lineCount(open.err), 1) << open.err;
+  EXPECT_NE(open.err.find("open.obj"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir.file("open.vtk")));
+  expectOneLineError(runCli({"convert", dir.file("s.vtk"), dir.file("s.xyz")}), 2, "s.xyz", "unsupported");
+  expectOneLineError(runCli({"convert", dir.file("s.vtk"), dir.file("s.vtk"), "--mesh-space", "xyz"}), 2, "", "xyz");
+}
+
+TEST(Cli, PhantomRasterizeEvalPipeline) {
+  ScratchDir dir;
+  const std::string out = dir.file("ph");
+  CliResult p = runCli({"phantom", "--seed", "3", "--out", out, "--spacing", "2,2,4", "--oblique", "5,0,-10"});
+  ASSERT_EQ(p.exitCode, 0) << p.err;
+  for (const char* f : {"image.nii.gz", "labels.nii.gz", "scene.json", "truth_femur.vtk", "template_femur.vtk"})
+    EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+  msk::Json scene = msk::Json::readFile(out + "/scene.json");
+  EXPECT_GE(scene.at("objects").size(), 4u);
+  EXPECT_EQ(scene.at("objects").asArray()[0].at("name").asString(), "femur");
+
+  CliResult r = runCli({"rasterize", "--mesh", out + "/truth_femur.vtk", "--like", out + "/image.nii.gz", "--out",
+                        dir.file("femur.nii.gz"), "--label", "1"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  CliResult e = runCli({"eval", "--result", dir.file("femur.nii.gz"), "--reference", out + "/labels.nii.gz", "--labels",
+                        "1", "--json", dir.file("m.json"), "--csv", dir.file("m.csv")});
+  ASSERT_EQ(e.exitCode, 0) << e.err;
+  msk::Json m = msk::Json::readFile(dir.file("m.json"));
+  EXPECT_GT(m.at("metrics").asArray()[0].at("dice").asNumber(), 0.97);
+  EXPECT_NE(msk::test::readBytes(dir.file("m.csv")).find("dice"), std::string::npos);
+
+  // Mesh-to-mesh: the truth femur against itself converted to another format.
+  ASSERT_EQ(runCli({"convert", out + "/truth_femur.vtk", dir.file("f.stl")}).exitCode, 0);
+  CliResult mm = runCli({"eval", "--result", dir.file("f.stl"), "--reference", out + "/truth_femur.vtk", "--json", "-"});
+  ASSERT_EQ(mm.exitCode, 0) << mm.err;
+  const size_t brace = mm.out.find('{');
+  ASSERT_NE(brace, std::string::npos) << mm.out;
+  EXPECT_LT(msk::Json::parse(mm.out.substr(brace)).at("metrics").asArray()[0].at("assd_mm").asNumber(), 1e-3);
+}
+
+TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
+  ScratchDir dir;
+  for (auto args : std::vector<std::vector<std::string>>{{"--spacing", "0,1,1"}, {"--noise", "-1"}, {"--bias", "5"},
+                                                          {"--spacing", "1,1"}}) {
+    std::vector<std::string> cmd = {"phantom", "--out", dir.file("p")};
+    cmd.insert(cmd.end(), args.begin(), args.end());
+    CliResult r = runCli(cmd);
+    EXPECT_EQ(r.exitCode, 2) << args[0] << ": " << r.err;
+    EXPECT_EQ(lineCount(r.err), 1) << r.err;
+    EXPECT_TRUE(dir.list().empty()) << "partial output after " << args[0];
+  }
+}
