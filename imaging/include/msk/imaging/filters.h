@@ -3,6 +3,7 @@
 /// resampling, robust intensity normalisation.
 #include <array>
 #include <optional>
+#include <vector>
 
 #include "msk/imaging/volume.h"
 
@@ -35,5 +36,9 @@ ImageF normalizeIntensity(const ImageF& image, double lowPercent = 1.0, double h
 
 /// The p-th percentile (0..100) of finite voxel values.
 double percentile(const ImageF& image, double p);
+
+/// The p-th percentile (0..100) of the finite entries of `values`: linear interpolation between the order
+/// statistics at rank p/100·(n−1). Throws ParameterError for p outside [0, 100], Error if no entry is finite.
+double percentile(std::vector<double> values, double p);
 
 }  // namespace msk

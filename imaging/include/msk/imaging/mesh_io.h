@@ -22,6 +22,8 @@ TriangleMesh readMesh(const std::string& path, MeshSpace* fileSpace = nullptr);
 
 /// Writes a RAS mesh converted to `space`, tagged, format by extension, atomically. Faces are reordered
 /// where the conversion has negative determinant (it has not for RAS↔LPS). Throws IoError.
+/// Point arrays are stored as doubles in .vtk (legacy 4.2, binary), .vtp and .ply (binary, whitespace in names
+/// becomes '_'); STL and OBJ carry geometry only. STL stores float32 coordinates, the others full doubles.
 void writeMesh(const std::string& path, const TriangleMesh& rasMesh, MeshSpace space = MeshSpace::LPS);
 
 /// True if the extension is one writeMesh/readMesh handle.

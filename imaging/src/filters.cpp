@@ -1,0 +1,204 @@
+#include "msk/imaging/filters.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "msk/core/error.h"
+
+namespace msk {
+namespace {
+
+/// Tolerance (voxels) by which a sample may lie beyond the first/last voxel centre and still count as inside.
+constexpr double kInsideTolVoxels = 1e-9;
+
+/// Continuous voxel coordinates of `worldMm`, clamped into [0, dims−1]; false if outside (beyond the tolerance)
+/// or not finite.
+bool insideVoxel(const Grid& grid, const Eigen::Vector3d& worldMm, Eigen::Vector3d& ijk) {
+  ijk = grid.toVoxel(worldMm);
+  for (int a = 0; a < 3; ++a) {
+    const double hi = grid.dims[a] - 1;
+    if (!std::isfinite(ijk[a]) || ijk[a] < -kInsideTolVoxels || ijk[a] > hi + kInsideTolVoxels) return false;
+    ijk[a] = std::clamp(ijk[a], 0.0, hi);
+  }
+  return true;
+}
+
+/// Normalised 1-D Gaussian kernel of standard deviation `sigmaVoxels`, truncated at 4 sigma (radius = size/2).
+std::vector<double> gaussianKernel(double sigmaVoxels) {
+  const int radius = std::max(1, static_cast<int>(std::ceil(4.0 * sigmaVoxels)));
+  std::vector<double> k(2 * radius + 1);
+  double sum = 0;
+  for (int t = -radius; t <= radius; ++t) sum += k[t + radius] = std::exp(-0.5 * t * t / (sigmaVoxels * sigmaVoxels));
+  for (double& v : k) v /= sum;
+  return k;
+}
+
+/// Convolves every line of `data` along `axis` with `kernel` (odd length), replicating edge values.
+void convolveAxis(std::vector<float>& data, const Grid& grid, int axis, const std::vector<double>& kernel) {
+  const int n = grid.dims[axis];
+  const int radius = static_cast<int>(kernel.size() / 2);
+  const size_t stride = axis == 0 ? 1 : axis == 1 ? static_cast<size_t>(grid.dims[0])
+                                                  : static_cast<size_t>(grid.dims[0]) * grid.dims[1];
+  // The two axes other than `axis` enumerate the lines.
+  const int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
+  std::vector<double> line(n);
+  for (int b = 0; b < grid.dims[w]; ++b)
+    for (int a = 0; a < grid.dims[u]; ++a) {
+      Eigen::Vector3i start(0, 0, 0);
+      start[u] = a;
+      start[w] = b;
+      const size_t base = grid.index(start[0], start[1], start[2]);
+      for (int p = 0; p < n; ++p) line[p] = data[base + p * stride];
+      for (int p = 0; p < n; ++p) {
+        double acc = 0;
+        for (int t = -radius; t <= radius; ++t) acc += kernel[t + radius] * line[std::clamp(p + t, 0, n - 1)];
+        data[base + p * stride] = static_cast<float>(acc);
+      }
+    }
+}
+
+/// Derivative per mm along voxel axis `axis` at (i, j, k): central differences, one-sided at the borders,
+/// zero when the axis has a single voxel.
+double axisDerivative(const ImageF& image, int axis, int i, int j, int k) {
+  const int n = image.grid.dims[axis];
+  if (n < 2) return 0;
+  Eigen::Vector3i p(i, j, k), lo = p, hi = p;
+  const int c = p[axis];
+  lo[axis] = std::max(c - 1, 0);
+  hi[axis] = std::min(c + 1, n - 1);
+  const double steps = hi[axis] - lo[axis];
+  return (double(image.at(hi[0], hi[1], hi[2])) - double(image.at(lo[0], lo[1], lo[2]))) /
+         (steps * image.grid.spacing[axis]);
+}
+
+}  // namespace
+
+std::optional<double> sampleTrilinear(const ImageF& image, const Eigen::Vector3d& worldMm) {
+  const Grid& g = image.grid;
+  Eigen::Vector3d v;
+  if (!insideVoxel(g, worldMm, v)) return std::nullopt;
+  int i0[3], i1[3];
+  double t[3];
+  for (int a = 0; a < 3; ++a) {
+    // Lower corner in [0, dims−2] (0 for a single voxel), so i1 = i0 + 1 never leaves the grid.
+    i0[a] = std::clamp(static_cast<int>(std::floor(v[a])), 0, std::max(g.dims[a] - 2, 0));
+    i1[a] = std::min(i0[a] + 1, g.dims[a] - 1);
+    t[a] = v[a] - i0[a];
+  }
+  double result = 0;
+  for (int c = 0; c < 8; ++c) {
+    const bool bi = c & 1, bj = c & 2, bk = c & 4;
+    const double wgt = (bi ? t[0] : 1 - t[0]) * (bj ? t[1] : 1 - t[1]) * (bk ? t[2] : 1 - t[2]);
+    if (wgt == 0) continue;
+    result += wgt * image.at(bi ? i1[0] : i0[0], bj ? i1[1] : i0[1], bk ? i1[2] : i0[2]);
+  }
+  return result;
+}
+
+std::optional<int32_t> sampleNearest(const LabelMap& labels, const Eigen::Vector3d& worldMm) {
+  const Grid& g = labels.grid;
+  Eigen::Vector3d v;
+  if (!insideVoxel(g, worldMm, v)) return std::nullopt;
+  int idx[3];
+  for (int a = 0; a < 3; ++a) idx[a] = std::clamp(static_cast<int>(std::lround(v[a])), 0, g.dims[a] - 1);
+  return labels.at(idx[0], idx[1], idx[2]);
+}
+
+ImageF gaussianSmooth(const ImageF& image, double sigmaMm) {
+  ImageF out = image;
+  if (!(sigmaMm > 0)) return out;
+  for (int a = 0; a < 3; ++a) {
+    const double sigmaVoxels = sigmaMm / image.grid.spacing[a];
+    if (sigmaVoxels < 0.1 || image.grid.dims[a] < 2) continue;  // kernel would be a delta (or nothing to blur)
+    convolveAxis(out.data, out.grid, a, gaussianKernel(sigmaVoxels));
+  }
+  return out;
+}
+
+std::array<ImageF, 3> gradientWorld(const ImageF& image) {
+  const Grid& g = image.grid;
+  std::array<ImageF, 3> out{ImageF(g), ImageF(g), ImageF(g)};
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d perAxis(axisDerivative(image, 0, i, j, k), axisDerivative(image, 1, i, j, k),
+                                      axisDerivative(image, 2, i, j, k));
+        const Eigen::Vector3d world = g.axisToWorld(perAxis);
+        const size_t n = g.index(i, j, k);
+        for (int c = 0; c < 3; ++c) out[c].data[n] = static_cast<float>(world[c]);
+      }
+  return out;
+}
+
+ImageF gradientMagnitude(const ImageF& image, double sigmaMm) {
+  const ImageF smooth = sigmaMm > 0 ? gaussianSmooth(image, sigmaMm) : image;
+  const Grid& g = smooth.grid;
+  ImageF out(g);
+  // |direction · v| = |v| (direction is orthonormal), so the rotation is not needed for the magnitude.
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const Eigen::Vector3d d(axisDerivative(smooth, 0, i, j, k), axisDerivative(smooth, 1, i, j, k),
+                                axisDerivative(smooth, 2, i, j, k));
+        out.at(i, j, k) = static_cast<float>(d.norm());
+      }
+  return out;
+}
+
+ImageF resample(const ImageF& image, const Grid& target, float outside) {
+  ImageF out(target, outside);
+  for (int k = 0; k < target.dims[2]; ++k)
+    for (int j = 0; j < target.dims[1]; ++j)
+      for (int i = 0; i < target.dims[0]; ++i)
+        if (auto v = sampleTrilinear(image, target.toWorld(Eigen::Vector3d(i, j, k))))
+          out.at(i, j, k) = static_cast<float>(*v);
+  return out;
+}
+
+LabelMap resampleLabels(const LabelMap& labels, const Grid& target) {
+  LabelMap out(target, 0);
+  for (int k = 0; k < target.dims[2]; ++k)
+    for (int j = 0; j < target.dims[1]; ++j)
+      for (int i = 0; i < target.dims[0]; ++i)
+        if (auto v = sampleNearest(labels, target.toWorld(Eigen::Vector3d(i, j, k)))) out.at(i, j, k) = *v;
+  return out;
+}
+
+double percentile(std::vector<double> values, double p) {
+  if (!(p >= 0 && p <= 100)) throw ParameterError("percentile", std::to_string(p), "must lie in [0, 100]");
+  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }),
+               values.end());
+  if (values.empty()) throw Error("percentile: no finite values");
+  const double rank = p / 100.0 * static_cast<double>(values.size() - 1);
+  const size_t lo = std::min(static_cast<size_t>(std::floor(rank)), values.size() - 1);
+  const double frac = rank - static_cast<double>(lo);
+  std::nth_element(values.begin(), values.begin() + lo, values.end());
+  const double vLo = values[lo];
+  if (frac <= 0 || lo + 1 >= values.size()) return vLo;
+  // After nth_element everything beyond lo is ≥ vLo, so the next order statistic is their minimum.
+  const double vHi = *std::min_element(values.begin() + lo + 1, values.end());
+  return vLo + frac * (vHi - vLo);
+}
+
+double percentile(const ImageF& image, double p) {
+  return percentile(std::vector<double>(image.data.begin(), image.data.end()), p);
+}
+
+ImageF normalizeIntensity(const ImageF& image, double lowPercent, double highPercent) {
+  if (!(lowPercent >= 0 && lowPercent < highPercent && highPercent <= 100))
+    throw ParameterError("percentiles", std::to_string(lowPercent) + ", " + std::to_string(highPercent),
+                         "need 0 ≤ low < high ≤ 100");
+  const std::vector<double> values(image.data.begin(), image.data.end());
+  const double lo = percentile(values, lowPercent), hi = percentile(values, highPercent);
+  if (!(hi > lo))
+    throw Error("normalizeIntensity: image is constant between the " + std::to_string(lowPercent) + " and " +
+                std::to_string(highPercent) + " percentiles (value " + std::to_string(lo) + ")");
+  ImageF out = image;
+  const double scale = 1.0 / (hi - lo);
+  // No clipping: values outside [lo, hi] map outside [0, 1]; non-finite values stay non-finite.
+  for (float& v : out.data) v = static_cast<float>((v - lo) * scale);
+  return out;
+}
+
+}  // namespace msk
