@@ -484,7 +484,7 @@ Grid chooseGrid(const Header& h, const std::string& path, NiftiInfo& info) {
     info.affineSource = AffineSource::Pixdim;
     log::warn(path + ": no usable sform or qform; using pixdim spacing with identity direction and origin 0 (world position unknown)");
   }
-  log::info(path + ": NIfTI-" + std::to_string(h.version) + " " + dataTypeName(h.type) + " " +
+  log::debug(path + ": NIfTI-" + std::to_string(h.version) + " " + dataTypeName(h.type) + " " +
             dimsText(g.dims[0], g.dims[1], g.dims[2]) + " voxels of " + fmt(g.spacing[0], 6) + "×" +
             fmt(g.spacing[1], 6) + "×" + fmt(g.spacing[2], 6) + " mm, orientation from the " + affineSourceName(info.affineSource));
   return g;

@@ -23,7 +23,9 @@ int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin
 void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase) {
   EXPECT_EQ(r.exitCode, code) << r.err;
   EXPECT_EQ(lineCount(r.err), 1) << r.err;
-  if (!file.empty()) EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
+  if (!file.empty()) {
+    EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
+  }
   EXPECT_NE(r.err.find(phrase), std::string::npos) << "wanted '" << phrase << "' in: " << r.err;
 }
 
