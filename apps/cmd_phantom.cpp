@@ -3,22 +3,25 @@
 
 #include "args.h"
 #include "commands.h"
+#include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/phantom.h"
 
 namespace msk::cli {
 
 int cmdPhantom(const std::vector<std::string>& argv) {
-  Args args(argv, {"seed", "out", "spacing", "oblique", "noise", "bias"}, {"help"});
+  Args args(argv, {"seed", "out", "spacing", "oblique", "noise", "bias", "vertices", "mesh-space"}, {"help"});
   if (args.has("help")) {
     std::cout << "usage: mskseg phantom --seed N --out DIR [--spacing 1.2,1.2,3] [--oblique ax,ay,az]\n"
-                 "                      [--noise SIGMA] [--bias B]\n\n"
+                 "                      [--noise SIGMA] [--bias B] [--vertices N] [--mesh-space lps|ras]\n\n"
                  "Writes a synthetic T1-weighted thigh MRI with exact ground truth into DIR: image.nii.gz,\n"
                  "labels.nii.gz, truth_<name>.vtk (this seed's anatomy), template_<name>.vtk (mean anatomy)\n"
                  "and scene.json. Anatomy (position, bend, radii, twist, septa) varies with the seed.\n"
                  "  --spacing   voxel size in mm along i,j,k            (default 1.2,1.2,3)\n"
                  "  --oblique   grid rotation in degrees about x,y,z    (default 0,0,0)\n"
                  "  --noise     Rician noise sigma, fraction of fat     (default 0.03)\n"
-                 "  --bias      multiplicative bias field amplitude     (default 0.15)\n";
+                 "  --bias      multiplicative bias field amplitude     (default 0.15)\n"
+                 "  --vertices  vertices of each truth/template mesh    (default 3000)\n"
+                 "  --mesh-space  space of the mesh files, tagged       (default lps)\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -30,6 +33,11 @@ int cmdPhantom(const std::vector<std::string>& argv) {
   opts.obliqueDegrees = args.vec3("oblique", opts.obliqueDegrees);
   opts.noise = args.num("noise", opts.noise);
   opts.bias = args.num("bias", opts.bias);
+  const long vertices = args.integer("vertices", opts.meshVertices);
+  if (vertices < 100 || vertices > 1000000)
+    throw ParameterError("--vertices", std::to_string(vertices), "must be in 100..1000000");
+  opts.meshVertices = static_cast<int>(vertices);
+  opts.meshSpace = parseMeshSpace(args.str("mesh-space", "lps"));
   const std::string out = args.str("out");
   Phantom p = makePhantom(opts, stderrProgress("phantom"));
   writeFolderAtomically(out, [&](const std::string& staging) { writePhantom(p, opts, staging); });

@@ -365,8 +365,8 @@ void writePhantom(const Phantom& phantom, const PhantomOptions& opts, const std:
 
   Json objects = Json::array();
   for (const PhantomObject& o : phantom.objects) {
-    writeMesh(base + "truth_" + o.name + ".vtk", o.truth);
-    writeMesh(base + "template_" + o.name + ".vtk", o.templ);
+    writeMesh(base + "truth_" + o.name + ".vtk", o.truth, opts.meshSpace);
+    writeMesh(base + "template_" + o.name + ".vtk", o.templ, opts.meshSpace);
     Json j = Json::object();
     j["name"] = o.name;
     j["label"] = static_cast<int>(o.label);
@@ -389,6 +389,8 @@ void writePhantom(const Phantom& phantom, const PhantomOptions& opts, const std:
   params["noise"] = opts.noise;
   params["bias"] = opts.bias;
   params["meshVertices"] = opts.meshVertices;
+  params["meshSpace"] = meshSpaceName(opts.meshSpace);
+  params["mskseg_version"] = MSK_VERSION;
   params["generator"] = kGenerator;
   params["version"] = kGeneratorVersion;
   Json scene = Json::object();

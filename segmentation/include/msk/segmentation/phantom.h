@@ -8,6 +8,7 @@
 
 #include "msk/core/log.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/imaging/mesh_io.h"
 #include "msk/imaging/volume.h"
 
 namespace msk {
@@ -22,6 +23,7 @@ struct PhantomOptions {
   bool meshes = true;          ///< compute truth and template meshes (false: image, labels and tissues only; faster)
   int meshVertices = 3000;     ///< target vertex count of each truth and template mesh
   double meshSpacingMm = 0.8;  ///< step of the fine grid on which the implicit surfaces are sampled for meshing
+  MeshSpace meshSpace = MeshSpace::LPS;  ///< space the mesh files are written in (tagged)
 };
 
 /// Tissue classes of the phantom image (values of Phantom::tissues).
