@@ -1,0 +1,104 @@
+#pragma once
+/// k-simplex meshes (every vertex has exactly k+1 neighbours) as structs of arrays, and the 2-simplex ↔
+/// triangle-mesh duality (DESIGN-NOTES §1).
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/triangle_mesh.h"
+
+namespace msk {
+
+/// Neighbour table, #V×(k+1), row-major.
+using NeighborTable = Eigen::Matrix<int, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// A k-simplex mesh: k = 1 curve (medial axis), k = 2 closed surface, k = 3 volume.
+/// For k = 2 the neighbours (P1, P2, P3) of a vertex are ordered so that (P2−P1)×(P3−P1) points outward.
+struct SimplexMesh {
+  int k = 2;                                          ///< simplex order
+  Points positions;                                   ///< #V×3, world mm
+  NeighborTable neighbors;                            ///< #V×(k+1) vertex indices
+  /// k = 2 only: the mesh's faces (polygons, one per vertex of the primal triangle mesh) in CSR form:
+  /// face f has vertices faceVertices[faceOffsets[f] .. faceOffsets[f+1]), ordered counter-clockwise from outside.
+  std::vector<int> faceOffsets, faceVertices;
+  std::map<std::string, Eigen::VectorXd> pointData;  ///< per-vertex scalars, each of length #V
+
+  /// Number of vertices.
+  int vertexCount() const { return static_cast<int>(positions.rows()); }
+  /// Number of polygonal faces (k = 2).
+  int faceCount() const { return faceOffsets.empty() ? 0 : static_cast<int>(faceOffsets.size()) - 1; }
+};
+
+/// Why a mesh is not a valid k-simplex mesh (empty if valid): table shape, indices in range, no self or repeated
+/// neighbours, symmetric adjacency, finite positions, face table consistent (k = 2).
+std::string simplexMeshProblem(const SimplexMesh& mesh);
+
+/// Rebuilds faceOffsets/faceVertices of a 2-simplex mesh from its oriented neighbour table: arriving at a vertex from
+/// its neighbour j, a face continues to neighbour (j + 2) mod 3. Throws Error if the table is not a valid k = 2 table.
+void buildSimplexFaces(SimplexMesh& mesh);
+
+/// Dual of a closed triangle mesh: one simplex vertex per triangle, at the triangle's centroid; one face per
+/// triangle-mesh vertex. Point data of the triangle mesh is averaged onto the simplex vertices. Throws Error if the
+/// mesh is not closed.
+SimplexMesh simplexFromTriangles(const TriangleMesh& mesh);
+
+/// Triangle mesh back from a 2-simplex mesh, with the geometric correction: the triangle vertices V are solved
+/// (sparse least squares) so that each triangle's centroid equals its simplex vertex, min |C V − P|² + μ|V − V₀|²
+/// with V₀ the face centroids and μ small, so the round trip triangles → simplex → triangles does not shrink.
+TriangleMesh trianglesFromSimplex(const SimplexMesh& mesh);
+
+/// Per-vertex geometry of a 2-simplex mesh (DESIGN-NOTES §1; Delingette's metric parameters).
+struct SimplexGeometry {
+  Points normals;             ///< #V×3 unit normal of the neighbours' plane, outward
+  Eigen::MatrixX3d epsilon;   ///< #V×3 metric parameters ε1..ε3 (Σ = 1): P⊥ = Σ εi Pi
+  Eigen::VectorXd height;     ///< signed height h of P above the neighbours' plane (mm), P = P⊥ + h n
+  Eigen::VectorXd circumRadius;  ///< radius r⊥ of the circle through P1, P2, P3 (mm)
+  Eigen::VectorXd simplexAngle;  ///< simplex angle φ ∈ [−π, π] (radians, sign of h; 0 when h = 0)
+  Eigen::VectorXd meanCurvature;  ///< H = sin φ / r⊥ (1/mm)
+};
+
+/// Computes normals, metric parameters, heights, simplex angles and mean curvatures (k = 2). φ is the angle of the
+/// sphere through P, P1, P2, P3 (Delingette 1999, IJCV 32(2), §2: sin φ = r⊥/R·sign h). A vertex with collinear
+/// neighbours gets the surface normal (simplexVertexNormals), ε = 1/3, h = φ = H = 0 and r⊥ = half its largest
+/// neighbour distance. Throws Error if the mesh is not a valid 2-simplex mesh.
+SimplexGeometry simplexGeometry(const SimplexMesh& mesh);
+
+/// Area-weighted outward vertex normals of a 2-simplex mesh's surface (smoother than the neighbour-plane normal).
+Points simplexVertexNormals(const SimplexMesh& mesh);
+
+/// Enclosed volume of a 2-simplex mesh (polygon faces fanned around their centroid), mm³.
+double simplexVolume(const SimplexMesh& mesh);
+
+/// Refines a 2-simplex mesh ×4 in vertices: its dual triangles (trianglesFromSimplex) are split 1→4, each new edge
+/// vertex placed on the curved PN-triangle edge through the end points and their normals (so the surface does not
+/// shrink), and the result dualised again. Child vertex 4t+i has parent t and inherits t's point data. `parentOf`
+/// (optional) receives the parent index of every new vertex.
+SimplexMesh refineSimplex(const SimplexMesh& mesh, std::vector<int>* parentOf = nullptr);
+
+/// Interpolation from one surface to another, set up once between two reference shapes (e.g. two resolution levels
+/// of a template): each target point is bound to its closest point on the source's triangles with barycentric
+/// weights; apply() then carries per-vertex vectors (e.g. displacements) or scalars across.
+class SurfaceTransfer {
+ public:
+  /// Binds every point of `targetPoints` to its closest point on the triangles of `source` (a grid-accelerated
+  /// exact search). Throws Error if `source` has no triangles.
+  SurfaceTransfer(const TriangleMesh& source, const Points& targetPoints);
+  /// Interpolates per-source-vertex rows (#Vsource×c) to the target points (#Vtarget×c).
+  Eigen::MatrixXd apply(const Eigen::MatrixXd& sourceValues) const;
+  /// Distance from each target point to its bound source point (mm).
+  const Eigen::VectorXd& distances() const { return distances_; }
+
+ private:
+  int sourceVertexCount_ = 0;
+  Eigen::Matrix<int, Eigen::Dynamic, 3> tri_;
+  Eigen::MatrixX3d bary_;
+  Eigen::VectorXd distances_;
+};
+
+/// Closest point on a triangle (a, b, c) to p; writes barycentric weights (sum 1). Exact (Ericson's regions).
+Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                       const Eigen::Vector3d& c, Eigen::Vector3d* barycentric = nullptr);
+
+}  // namespace msk
