@@ -1,0 +1,124 @@
+#pragma once
+/// Constraints in two layers (STYLE.md): pure kernels that compute corrections for a few points, and constraint
+/// sets that own indices, reference parameters and stiffness. Every set projects positions (PBD, DESIGN-NOTES §2,
+/// §6); the force-based schemes consume the same sets later.
+#include <string>
+
+#include <Eigen/Core>
+
+#include "msk/core/simplex_mesh.h"
+
+namespace msk {
+
+// ------------------------------------------------------------------------------------------------ kernels
+
+/// 2-simplex internal constraint, method 2 (DESIGN-NOTES §2; thesis seed §4.8.1): moves P toward its target
+/// P̃ = Σ ε̃i Pi + h̃ n and the neighbours Pi against it with λ' = [PP1 PP2 PP3]⁻¹ PP̃, λi = λ'i / Σλ'j, so linear
+/// and angular momentum are conserved. Reduced mass m̄ = (w + Σ ε̃i λi wi)⁻¹ makes the full step (γ = 1) land on the
+/// target to first order. Lengths in mm, w inverse masses (0 = fixed), γ ∈ [0,1]. Writes ΔP, ΔPi; returns false on
+/// degenerate input (every particle fixed, non-finite target), leaving the outputs untouched. Where no torque-free
+/// split exists (PP̃ nearly parallel to the neighbours' plane, or λ extreme) the neighbours share the reaction with
+/// λ = ε̃ instead (linear momentum still conserved); `torqueFree` (optional) tells which branch was taken.
+bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
+                               double w, const double wi[3], const double epsTarget[3], double gamma,
+                               Eigen::Vector3d& dp, Eigen::Vector3d dpi[3], bool* torqueFree = nullptr);
+
+/// Independent target constraint (image force, DESIGN-NOTES §2): ΔP = γ·(T − P) for a free particle (α = M dt⁻²),
+/// nothing for a fixed one. Returns false if w = 0.
+bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, double w, double gamma,
+                      Eigen::Vector3d& dp);
+
+/// Target of the 2-simplex shape memory at the current neighbours: P̃ = Σ ε̃i Pi + h̃·r⊥·n, with the reference height
+/// stored scale-free (h̃ = h_ref / r⊥_ref) and rescaled by the current circumradius r⊥ of P1P2P3, so the memory holds
+/// under a change of size. Returns false if the neighbours are degenerate (collinear).
+bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double heightOverRadius,
+                        Eigen::Vector3d& target);
+
+// ------------------------------------------------------------------------------------------------ sets
+
+/// A family of constraints projected together (sequential Gauss–Seidel order within the set).
+class ConstraintSet {
+ public:
+  virtual ~ConstraintSet() = default;
+  /// Family name for reports ("simplex-internal", "image-targets", ...).
+  virtual std::string name() const = 0;
+  /// Projects every constraint once on positions `p` (#V×3) with inverse masses `w`.
+  virtual void project(Points& p, const Eigen::VectorXd& w) = 0;
+};
+
+/// How the 2-simplex internal constraint chooses its target.
+enum class InternalMode {
+  ShapeMemory,  ///< ε̃, h̃ of the template (scale-free), the default
+  Smoothing     ///< ε̃ = 1/3, h̃ = mean of the neighbours' current scale-free heights
+};
+
+/// Internal constraints of a 2-simplex mesh: one per vertex, targets from the reference (template) geometry.
+class SimplexInternalConstraints : public ConstraintSet {
+ public:
+  /// Records the neighbour table and the reference metric parameters of `reference` (same connectivity as the
+  /// meshes it will be applied to). γ ∈ [0, 1] (throws ParameterError otherwise).
+  SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode = InternalMode::ShapeMemory);
+  std::string name() const override { return "simplex-internal"; }
+  void project(Points& p, const Eigen::VectorXd& w) override;
+  /// User stiffness γ.
+  double gamma() const { return gamma_; }
+  /// Number of projections skipped as degenerate in the last pass.
+  int skipped() const { return skipped_; }
+
+ private:
+  NeighborTable nb_;
+  Eigen::MatrixX3d eps_;
+  Eigen::VectorXd hOverR_;
+  double gamma_;
+  InternalMode mode_;
+  int skipped_ = 0;
+};
+
+/// Independent target constraints: each vertex pulled toward its target with γ·weight_i (weights in [0, 1]).
+class TargetConstraints : public ConstraintSet {
+ public:
+  /// γ ∈ [0, 1] (throws ParameterError otherwise).
+  explicit TargetConstraints(double gamma);
+  std::string name() const override { return "image-targets"; }
+  /// Sets the targets (#V×3) and per-vertex weights (#V, clamped to [0, 1]).
+  void setTargets(const Points& targets, const Eigen::VectorXd& weights);
+  void project(Points& p, const Eigen::VectorXd& w) override;
+
+ private:
+  double gamma_;
+  Points targets_;
+  Eigen::VectorXd weights_;
+};
+
+/// Kind of transform a global shape prior fits.
+enum class PriorTransform { Rigid, Similarity, Affine };
+
+/// Global shape prior (shape matching, DESIGN-NOTES §1): pulls every vertex toward the best-fitting transform of the
+/// reference shape, mass-weighted (Umeyama for rigid/similarity, least squares for affine). The weight λ can be
+/// changed between steps (ramped over a run).
+class ShapeMatchingConstraint : public ConstraintSet {
+ public:
+  /// `reference` #V×3; λ ∈ [0, 1] (throws ParameterError otherwise).
+  ShapeMatchingConstraint(const Points& reference, PriorTransform transform, double lambda);
+  std::string name() const override { return "global-prior"; }
+  void project(Points& p, const Eigen::VectorXd& w) override;
+  /// Sets λ ∈ [0, 1].
+  void setLambda(double lambda);
+  /// Current λ.
+  double lambda() const { return lambda_; }
+  /// The last fitted 4×4 transform (reference → current).
+  const Eigen::Matrix4d& lastTransform() const { return last_; }
+
+ private:
+  Points ref_;
+  PriorTransform transform_;
+  double lambda_;
+  Eigen::Matrix4d last_ = Eigen::Matrix4d::Identity();
+};
+
+/// Best transform mapping `from` onto `to` (rows are points), weighted by `weights` (#V, ≥ 0, not all zero).
+/// Rigid and similarity fits are Umeyama's (proper rotations only); affine is weighted least squares.
+Eigen::Matrix4d fitTransform(const Points& from, const Points& to, const Eigen::VectorXd& weights,
+                             PriorTransform transform);
+
+}  // namespace msk

@@ -1,0 +1,245 @@
+#include "msk/core/constraints.h"
+
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "msk/core/error.h"
+
+namespace msk {
+
+namespace {
+void checkUnit(const char* name, double v) {
+  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
+}
+
+/// Circumradius of triangle (a, b, c) and its unit normal (b−a)×(c−a); false if degenerate.
+bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
+                   Eigen::Vector3d& normal) {
+  const Eigen::Vector3d x = (b - a).cross(c - a);
+  const double twiceArea = x.norm();
+  const double la = (b - c).norm(), lb = (c - a).norm(), lc = (a - b).norm();
+  const double scale = std::max({la, lb, lc});
+  if (!(twiceArea > 1e-12 * scale * scale) || !std::isfinite(twiceArea)) return false;
+  radius = la * lb * lc / (2.0 * twiceArea);
+  normal = x / twiceArea;
+  return true;
+}
+}  // namespace
+
+bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double hOverR, Eigen::Vector3d& target) {
+  double r = 0;
+  Eigen::Vector3d n;
+  if (!triangleFrame(pi[0], pi[1], pi[2], r, n)) return false;
+  target = epsRef[0] * pi[0] + epsRef[1] * pi[1] + epsRef[2] * pi[2] + hOverR * r * n;
+  return target.allFinite();
+}
+
+bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
+                               double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
+                               Eigen::Vector3d dpi[3], bool* torqueFree) {
+  const Eigen::Vector3d d = target - p;
+  if (!d.allFinite()) return false;
+  if (w <= 0 && wi[0] <= 0 && wi[1] <= 0 && wi[2] <= 0) return false;
+  const Eigen::Vector3d a1 = pi[0] - p, a2 = pi[1] - p, a3 = pi[2] - p;
+  // Cramer's rule without the determinant: λ'i ∝ μi, and λi = μi / Σμ (the determinant cancels), so the
+  // normalised weights stay finite as P approaches its neighbours' plane (they tend to εi there).
+  const Eigen::Vector3d mu(d.dot(a2.cross(a3)), d.dot(a3.cross(a1)), d.dot(a1.cross(a2)));
+  const double sumMu = mu.sum();
+  Eigen::Vector3d lambda;
+  bool split = false;
+  if (std::fabs(sumMu) > 0.05 * mu.cwiseAbs().sum() && std::fabs(sumMu) > 0) {
+    lambda = mu / sumMu;
+    split = true;
+  } else {
+    // d (nearly) parallel to the neighbours' plane: no torque-free split exists; share like the 3-simplex
+    // constraint (linear momentum still conserved).
+    lambda << eps[0], eps[1], eps[2];
+  }
+  double denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
+  if (!(denom > 0.1 * w) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 10.0) {
+    lambda << eps[0], eps[1], eps[2];
+    denom = w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
+    if (!(denom > 0)) return false;
+    split = false;
+  }
+  if (torqueFree) *torqueFree = split;
+  const double mbar = gamma / denom;
+  dp = (w * mbar) * d;
+  for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
+  return true;
+}
+
+bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, double w, double gamma,
+                      Eigen::Vector3d& dp) {
+  if (w <= 0) return false;
+  dp = gamma * (target - p);
+  return dp.allFinite();
+}
+
+// ------------------------------------------------------------------------------------------------ internal set
+
+SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode)
+    : nb_(reference.neighbors), gamma_(gamma), mode_(mode) {
+  checkUnit("internal stiffness", gamma);
+  MSK_ASSERT(reference.k == 2 && nb_.cols() == 3, "2-simplex mesh expected");
+  const int n = reference.vertexCount();
+  eps_.resize(n, 3);
+  hOverR_.resize(n);
+  for (int v = 0; v < n; ++v) {
+    Eigen::Vector3d pi[3] = {reference.positions.row(nb_(v, 0)), reference.positions.row(nb_(v, 1)),
+                             reference.positions.row(nb_(v, 2))};
+    const Eigen::Vector3d p = reference.positions.row(v);
+    double r = 0;
+    Eigen::Vector3d nrm;
+    if (!triangleFrame(pi[0], pi[1], pi[2], r, nrm)) {
+      eps_.row(v).setConstant(1.0 / 3.0);
+      hOverR_[v] = 0;
+      continue;
+    }
+    // Barycentric coordinates of P's projection on the neighbours' plane.
+    const double h = (p - pi[0]).dot(nrm);
+    const Eigen::Vector3d q = p - h * nrm;
+    const Eigen::Vector3d e0 = pi[1] - pi[0], e1 = pi[2] - pi[0], f = q - pi[0];
+    const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = f.dot(e0), d21 = f.dot(e1);
+    const double den = d00 * d11 - d01 * d01;
+    const double b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den;
+    eps_.row(v) << 1.0 - b1 - b2, b1, b2;
+    hOverR_[v] = h / r;
+  }
+}
+
+void SimplexInternalConstraints::project(Points& p, const Eigen::VectorXd& w) {
+  const int n = static_cast<int>(nb_.rows());
+  MSK_ASSERT(p.rows() == n && w.size() == n, "internal constraints: size mismatch");
+  skipped_ = 0;
+  Eigen::VectorXd smoothH;
+  if (mode_ == InternalMode::Smoothing) {
+    // Current scale-free heights, then their neighbourhood means (one Jacobi pass per projection).
+    Eigen::VectorXd hr(n);
+    for (int v = 0; v < n; ++v) {
+      Eigen::Vector3d pi[3] = {p.row(nb_(v, 0)), p.row(nb_(v, 1)), p.row(nb_(v, 2))};
+      double r = 0;
+      Eigen::Vector3d nrm;
+      hr[v] = triangleFrame(pi[0], pi[1], pi[2], r, nrm) ? (p.row(v).transpose() - pi[0]).dot(nrm) / r : 0.0;
+    }
+    smoothH.resize(n);
+    for (int v = 0; v < n; ++v) smoothH[v] = (hr[nb_(v, 0)] + hr[nb_(v, 1)] + hr[nb_(v, 2)]) / 3.0;
+  }
+  static const double third[3] = {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
+  for (int v = 0; v < n; ++v) {
+    const int i0 = nb_(v, 0), i1 = nb_(v, 1), i2 = nb_(v, 2);
+    Eigen::Vector3d pi[3] = {p.row(i0), p.row(i1), p.row(i2)};
+    const double* eps = mode_ == InternalMode::Smoothing ? third : eps_.row(v).data();
+    double epsCopy[3];
+    if (mode_ == InternalMode::ShapeMemory) {
+      epsCopy[0] = eps_(v, 0);
+      epsCopy[1] = eps_(v, 1);
+      epsCopy[2] = eps_(v, 2);
+      eps = epsCopy;
+    }
+    const double hr = mode_ == InternalMode::Smoothing ? smoothH[v] : hOverR_[v];
+    Eigen::Vector3d target;
+    if (!simplexShapeTarget(pi, eps, hr, target)) {
+      ++skipped_;
+      continue;
+    }
+    const double wi[3] = {w[i0], w[i1], w[i2]};
+    Eigen::Vector3d dp, dpi[3];
+    if (!simplexInternalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi)) {
+      ++skipped_;
+      continue;
+    }
+    p.row(v) += dp.transpose();
+    p.row(i0) += dpi[0].transpose();
+    p.row(i1) += dpi[1].transpose();
+    p.row(i2) += dpi[2].transpose();
+  }
+}
+
+// ------------------------------------------------------------------------------------------------ targets
+
+TargetConstraints::TargetConstraints(double gamma) : gamma_(gamma) { checkUnit("image stiffness", gamma); }
+
+void TargetConstraints::setTargets(const Points& targets, const Eigen::VectorXd& weights) {
+  MSK_ASSERT(targets.rows() == weights.size(), "targets and weights differ in size");
+  targets_ = targets;
+  weights_ = weights.cwiseMax(0.0).cwiseMin(1.0);
+}
+
+void TargetConstraints::project(Points& p, const Eigen::VectorXd& w) {
+  if (targets_.rows() == 0) return;
+  MSK_ASSERT(p.rows() == targets_.rows(), "targets: size mismatch");
+  for (int v = 0; v < p.rows(); ++v) {
+    if (weights_[v] <= 0) continue;
+    Eigen::Vector3d dp;
+    if (targetCorrection(p.row(v).transpose(), targets_.row(v).transpose(), w[v], gamma_ * weights_[v], dp))
+      p.row(v) += dp.transpose();
+  }
+}
+
+// ------------------------------------------------------------------------------------------------ global prior
+
+Eigen::Matrix4d fitTransform(const Points& from, const Points& to, const Eigen::VectorXd& weights,
+                             PriorTransform transform) {
+  MSK_ASSERT(from.rows() == to.rows() && from.rows() == weights.size(), "fitTransform: size mismatch");
+  const double wsum = weights.sum();
+  MSK_ASSERT(wsum > 0, "fitTransform: weights sum to zero");
+  const Eigen::RowVector3d cf = (weights.asDiagonal() * from).colwise().sum() / wsum;
+  const Eigen::RowVector3d ct = (weights.asDiagonal() * to).colwise().sum() / wsum;
+  const Eigen::MatrixX3d a = from.rowwise() - cf, b = to.rowwise() - ct;
+  Eigen::Matrix3d m;
+  if (transform == PriorTransform::Affine) {
+    const Eigen::Matrix3d aa = a.transpose() * weights.asDiagonal() * a;
+    const Eigen::Matrix3d ab = a.transpose() * weights.asDiagonal() * b;
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(aa);
+    if (!lu.isInvertible()) transform = PriorTransform::Similarity;  // planar or collinear input
+    else m = (lu.solve(ab)).transpose();
+  }
+  if (transform != PriorTransform::Affine) {
+    const Eigen::Matrix3d cov = b.transpose() * weights.asDiagonal() * a / wsum;  // Σ w (to)(from)ᵀ
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d s = Eigen::Matrix3d::Identity();
+    if ((svd.matrixU() * svd.matrixV().transpose()).determinant() < 0) s(2, 2) = -1;
+    const Eigen::Matrix3d r = svd.matrixU() * s * svd.matrixV().transpose();
+    double scale = 1.0;
+    if (transform == PriorTransform::Similarity) {
+      const double varFrom = (weights.asDiagonal() * a.rowwise().squaredNorm()).sum() / wsum;
+      if (varFrom > 0) scale = (svd.singularValues().asDiagonal() * s).trace() / varFrom;
+    }
+    m = scale * r;
+  }
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  t.topLeftCorner<3, 3>() = m;
+  t.topRightCorner<3, 1>() = ct.transpose() - m * cf.transpose();
+  return t;
+}
+
+ShapeMatchingConstraint::ShapeMatchingConstraint(const Points& reference, PriorTransform transform, double lambda)
+    : ref_(reference), transform_(transform), lambda_(lambda) {
+  checkUnit("global prior weight", lambda);
+}
+
+void ShapeMatchingConstraint::setLambda(double lambda) {
+  checkUnit("global prior weight", lambda);
+  lambda_ = lambda;
+}
+
+void ShapeMatchingConstraint::project(Points& p, const Eigen::VectorXd& w) {
+  MSK_ASSERT(p.rows() == ref_.rows(), "global prior: size mismatch");
+  if (lambda_ <= 0) return;
+  // Mass weights: fixed particles (w = 0) weigh like a very heavy particle.
+  const double wmax = w.maxCoeff();
+  Eigen::VectorXd mass(w.size());
+  for (int i = 0; i < w.size(); ++i) mass[i] = w[i] > 0 ? 1.0 / w[i] : 1e6 / std::max(wmax, 1e-300);
+  last_ = fitTransform(ref_, p, mass, transform_);
+  const Eigen::Matrix3d m = last_.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = last_.topRightCorner<3, 1>();
+  for (int i = 0; i < p.rows(); ++i) {
+    if (w[i] <= 0) continue;
+    const Eigen::Vector3d goal = m * ref_.row(i).transpose() + t;
+    p.row(i) += lambda_ * (goal.transpose() - p.row(i));
+  }
+}
+
+}  // namespace msk

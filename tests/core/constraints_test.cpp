@@ -1,0 +1,137 @@
+#include "msk/core/constraints.h"
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+
+namespace {
+Eigen::Vector3d randomVec(std::mt19937& rng, double s = 1.0) {
+  std::uniform_real_distribution<double> u(-s, s);
+  return {u(rng), u(rng), u(rng)};
+}
+}  // namespace
+
+// Internal-constraint corrections of method 2 carry no linear and no angular momentum (DESIGN-NOTES §2).
+TEST(SimplexInternalKernel, ConservesLinearAndAngularMomentum) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> um(0.2, 5.0);
+  int method2 = 0;
+  for (int t = 0; t < 2000; ++t) {
+    Eigen::Vector3d pi[3] = {Eigen::Vector3d(10, 0, 0) + randomVec(rng, 2), Eigen::Vector3d(-5, 8.7, 0) + randomVec(rng, 2),
+                             Eigen::Vector3d(-5, -8.7, 0) + randomVec(rng, 2)};
+    const Eigen::Vector3d p = Eigen::Vector3d(0, 0, 3) + randomVec(rng, 2);
+    const double eps[3] = {0.3, 0.3, 0.4};
+    const Eigen::Vector3d target = eps[0] * pi[0] + eps[1] * pi[1] + eps[2] * pi[2] + Eigen::Vector3d(0, 0, 2) +
+                                   randomVec(rng, 0.5);
+    const double w = 1.0 / um(rng), wi[3] = {1.0 / um(rng), 1.0 / um(rng), 1.0 / um(rng)};
+    Eigen::Vector3d dp, dpi[3];
+    bool torqueFree = false;
+    ASSERT_TRUE(msk::simplexInternalCorrection(p, pi, target, w, wi, eps, 1.0, dp, dpi, &torqueFree));
+    Eigen::Vector3d lin = dp / w, ang = p.cross(dp) / w;
+    for (int i = 0; i < 3; ++i) {
+      lin += dpi[i] / wi[i];
+      ang += pi[i].cross(dpi[i]) / wi[i];
+    }
+    const double scale = dp.norm() / w + 1e-12;
+    EXPECT_LT(lin.norm(), 1e-9 * scale * 10);
+    // Angular momentum vanishes whenever the torque-free split exists (method 2 proper).
+    if (torqueFree) {
+      ++method2;
+      EXPECT_LT(ang.norm(), 1e-9 * scale * 100) << "trial " << t;
+    }
+  }
+  EXPECT_GT(method2, 1500);  // most random configurations take the torque-free branch
+}
+
+TEST(SimplexInternalKernel, FullStepReachesTheTargetToFirstOrder) {
+  Eigen::Vector3d pi[3] = {{10, 0, 0}, {-5, 8.7, 0}, {-5, -8.7, 0}};
+  const double eps[3] = {1.0 / 3, 1.0 / 3, 1.0 / 3};
+  const Eigen::Vector3d p(0.3, -0.2, 2.0);
+  const Eigen::Vector3d target = (pi[0] + pi[1] + pi[2]) / 3 + Eigen::Vector3d(0, 0, 2.2);
+  const double w = 1, wi[3] = {1, 1, 1};
+  Eigen::Vector3d dp, dpi[3];
+  ASSERT_TRUE(msk::simplexInternalCorrection(p, pi, target, w, wi, eps, 1.0, dp, dpi));
+  // New target with the moved neighbours, same plane normal and height offset (linearised constraint).
+  Eigen::Vector3d moved[3] = {pi[0] + dpi[0], pi[1] + dpi[1], pi[2] + dpi[2]};
+  const Eigen::Vector3d newTarget = (moved[0] + moved[1] + moved[2]) / 3 + Eigen::Vector3d(0, 0, 2.2);
+  EXPECT_LT((newTarget - (p + dp)).norm(), 1e-9);
+  // γ = 0 moves nothing; a fixed vertex with fixed neighbours is degenerate.
+  ASSERT_TRUE(msk::simplexInternalCorrection(p, pi, target, w, wi, eps, 0.0, dp, dpi));
+  EXPECT_EQ(dp.norm(), 0.0);
+  const double fixed[3] = {0, 0, 0};
+  EXPECT_FALSE(msk::simplexInternalCorrection(p, pi, target, 0.0, fixed, eps, 1.0, dp, dpi));
+}
+
+TEST(SimplexInternalKernel, FixedNeighboursLeaveAllTheCorrectionToTheVertex) {
+  Eigen::Vector3d pi[3] = {{10, 0, 0}, {-5, 8.7, 0}, {-5, -8.7, 0}};
+  const double eps[3] = {0.2, 0.3, 0.5};
+  const Eigen::Vector3d p(1, 1, 1), target(0.5, -0.5, 3);
+  const double wi[3] = {0, 0, 0};
+  Eigen::Vector3d dp, dpi[3];
+  ASSERT_TRUE(msk::simplexInternalCorrection(p, pi, target, 1.0, wi, eps, 1.0, dp, dpi));
+  EXPECT_LT((p + dp - target).norm(), 1e-12);
+  for (const auto& d : dpi) EXPECT_EQ(d.norm(), 0.0);
+}
+
+TEST(SimplexShapeTarget, ScalesHeightWithTheNeighbourhood) {
+  Eigen::Vector3d pi[3] = {{1, 0, 0}, {-0.5, 0.8660254, 0}, {-0.5, -0.8660254, 0}};
+  const double eps[3] = {1.0 / 3, 1.0 / 3, 1.0 / 3};
+  Eigen::Vector3d t;
+  ASSERT_TRUE(msk::simplexShapeTarget(pi, eps, 0.5, t));
+  EXPECT_NEAR(t.z(), 0.5, 1e-6);  // circumradius 1
+  for (auto& q : pi) q *= 4.0;
+  ASSERT_TRUE(msk::simplexShapeTarget(pi, eps, 0.5, t));
+  EXPECT_NEAR(t.z(), 2.0, 1e-6);
+  Eigen::Vector3d line[3] = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  EXPECT_FALSE(msk::simplexShapeTarget(line, eps, 0.5, t));
+}
+
+TEST(TargetKernel, MovesFreeParticlesOnly) {
+  Eigen::Vector3d dp;
+  ASSERT_TRUE(msk::targetCorrection({0, 0, 0}, {2, 0, 0}, 1.0, 0.25, dp));
+  EXPECT_NEAR(dp.x(), 0.5, 1e-15);
+  EXPECT_FALSE(msk::targetCorrection({0, 0, 0}, {2, 0, 0}, 0.0, 0.25, dp));
+}
+
+TEST(FitTransform, RecoversRigidSimilarityAndAffine) {
+  std::mt19937 rng(3);
+  msk::Points from(50, 3);
+  for (int i = 0; i < 50; ++i) from.row(i) = randomVec(rng, 20).transpose();
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(5, -3, 2);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(50);
+  for (auto [kind, m] : {std::pair{msk::PriorTransform::Rigid, Eigen::Matrix3d(r)},
+                         std::pair{msk::PriorTransform::Similarity, Eigen::Matrix3d(1.07 * r)},
+                         std::pair{msk::PriorTransform::Affine, Eigen::Matrix3d(r * Eigen::Vector3d(1.1, 0.9, 1.2).asDiagonal())}}) {
+    msk::Points to = (from * m.transpose()).rowwise() + t.transpose();
+    const Eigen::Matrix4d fit = msk::fitTransform(from, to, w, kind);
+    EXPECT_LT((fit.topLeftCorner<3, 3>() - m).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_LT((fit.topRightCorner<3, 1>() - t).cwiseAbs().maxCoeff(), 1e-9);
+  }
+}
+
+TEST(ShapeMatching, PullsTowardTheFittedReferenceWithoutNetMomentum) {
+  std::mt19937 rng(5);
+  msk::Points ref(40, 3);
+  for (int i = 0; i < 40; ++i) ref.row(i) = randomVec(rng, 10).transpose();
+  msk::Points p = ref;
+  p.col(0) *= 1.3;  // a non-rigid stretch
+  p.rowwise() += Eigen::RowVector3d(3, 4, 5);
+  const msk::Points before = p;
+  msk::ShapeMatchingConstraint c(ref, msk::PriorTransform::Rigid, 0.5);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(40);
+  c.project(p, w);
+  EXPECT_LT((p - before).colwise().sum().norm(), 1e-9);  // linear momentum
+  // Projecting to λ = 1 gives a rigid copy of the reference.
+  c.setLambda(1.0);
+  c.project(p, w);
+  for (int i = 0; i < 40; ++i)
+    for (int j = i + 1; j < 40; j += 7)
+      EXPECT_NEAR((p.row(i) - p.row(j)).norm(), (ref.row(i) - ref.row(j)).norm(), 1e-9);
+  EXPECT_THROW(c.setLambda(1.5), msk::ParameterError);
+  EXPECT_THROW(msk::TargetConstraints(-0.1), msk::ParameterError);
+}
