@@ -1,0 +1,79 @@
+#pragma once
+/// Image forces (DESIGN-NOTES §7): per vertex, a target point searched along the normal within ±range mm, either the
+/// strongest gradient of the expected polarity or the best normalised cross-correlation with a learned intensity
+/// profile; scores regularised over mesh neighbours. The targets become independent constraints.
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/simplex_mesh.h"
+#include "msk/imaging/volume.h"
+
+namespace msk {
+
+/// Image features at one scale, computed once and shared by every object that uses that scale.
+struct ImageFeatures {
+  double sigmaMm = 0;  ///< Gaussian scale of the smoothed image (0 = unsmoothed)
+  ImageF smoothed;     ///< G_sigma * I (normalised intensities)
+  /// Intensity at a world point (trilinear), nullopt outside the grid.
+  std::optional<double> sample(const Eigen::Vector3d& worldMm) const;
+};
+
+/// Builds the features of `image` at scale `sigmaMm` (Gaussian smoothing in mm).
+ImageFeatures computeImageFeatures(const ImageF& image, double sigmaMm);
+
+/// Edge polarity along the outward normal.
+enum class Polarity {
+  Auto,         ///< estimated from intensities just inside vs just outside the initial surface
+  DarkInside,   ///< intensity rises going outward (T1: dark cortical bone against bright fat)
+  BrightInside  ///< intensity falls going outward (CT bone against soft tissue, T1 marrow)
+};
+
+/// What the search looks for.
+enum class TargetMode {
+  Gradient,  ///< strongest directional derivative of the right polarity
+  Profile    ///< best NCC with the profile learned at the initial position
+};
+
+/// Search parameters. Lengths in mm; 0 means "relative to the voxel size" (documented per field).
+struct TargetSearchOptions {
+  TargetMode mode = TargetMode::Gradient;  ///< criterion
+  Polarity polarity = Polarity::Auto;      ///< expected edge direction
+  double rangeMm = 0;        ///< search ±range along the normal; 0 → 4 × the largest voxel spacing
+  double stepMm = 0;         ///< sampling step along the normal; 0 → 0.25 × the smallest voxel spacing
+  double distancePenalty = 0.1;  ///< score reduction per mm of displacement (relative to the best score)
+  double profileHalfLengthMm = 0;  ///< half length of learned profiles; 0 → 2 × the largest voxel spacing
+  int regularisationRings = 1;     ///< neighbour rings over which target offsets are smoothed (0 = none)
+};
+
+/// Per-vertex intensity profiles learned on the template's initial position (Profile mode).
+struct LearnedProfiles {
+  double stepMm = 0;           ///< sample spacing along the normal
+  int halfSamples = 0;         ///< samples on each side of the surface
+  Eigen::MatrixXd profiles;    ///< #V × (2·halfSamples+1), zero-mean unit-norm rows
+};
+
+/// Result of one target search.
+struct TargetSearchResult {
+  Points targets;             ///< #V×3 target positions (world mm); equal to the vertex where nothing was found
+  Eigen::VectorXd offsets;    ///< signed offset along the normal (mm)
+  Eigen::VectorXd scores;     ///< ≥ 0 confidence per vertex (0: no edge found, no force)
+  Eigen::VectorXd residual;   ///< |offset| before regularisation (the "image residual", mm)
+};
+
+/// Estimates the polarity from the mean intensity sampled 0.5–3 mm inside vs outside along the normals.
+Polarity estimatePolarity(const ImageFeatures& features, const Points& positions, const Points& normals);
+
+/// Learns per-vertex profiles at the current positions (normals outward).
+LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
+                              const TargetSearchOptions& opts, const Grid& grid);
+
+/// Searches a target for every vertex along its normal. `neighbors` (#V×3, the simplex neighbour table) is used
+/// for the regularisation; `profiles` is required in Profile mode. `polarity` must not be Auto (estimate it once).
+TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
+                                 const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
+                                 const Grid& grid, const LearnedProfiles* profiles = nullptr);
+
+}  // namespace msk

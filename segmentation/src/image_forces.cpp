@@ -1,0 +1,453 @@
+#include "msk/segmentation/image_forces.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "msk/core/error.h"
+#include "msk/imaging/filters.h"
+
+namespace msk {
+namespace {
+
+/// A gradient lobe ends at a dip once the derivative climbs again by this fraction of the peak.
+constexpr double kLobeDip = 0.1;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Tolerance (voxels) by which a sample may lie beyond the first/last voxel centre (as sampleTrilinear).
+constexpr double kInsideTolVoxels = 1e-9;
+/// Upper bound on samples per search line (guards against absurd range/step ratios).
+constexpr int kMaxHalfSamples = 100000;
+/// Profiles (normalised intensities) whose centred norm is below this per sample count as flat.
+constexpr double kFlatTol = 1e-6;
+
+/// Trilinear sampling along straight lines p + s·n, equivalent to sampleTrilinear but with the world→voxel map
+/// applied once per line: voxel coordinates are affine in s, so each sample costs one interpolation.
+class LineSampler {
+ public:
+  /// Binds the sampler to `image` (kept by reference).
+  explicit LineSampler(const ImageF& image) : image_(image) {
+    const Grid& g = image.grid;
+    worldToVoxel_ = g.spacing.cwiseInverse().asDiagonal() * g.direction.transpose();
+    for (int a = 0; a < 3; ++a) upper_[a] = g.dims[a] - 1;
+  }
+  /// Starts the line through `pointMm` along `directionMm` (world, per mm of s).
+  void setLine(const Eigen::Vector3d& pointMm, const Eigen::Vector3d& directionMm) {
+    start_ = worldToVoxel_ * (pointMm - image_.grid.origin);
+    delta_ = worldToVoxel_ * directionMm;
+    // The interval of s inside the voxel-centre hull, so the per-sample test is one comparison.
+    sLow_ = -std::numeric_limits<double>::infinity();
+    sHigh_ = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) {
+      const double lo = -kInsideTolVoxels - start_[a], hi = upper_[a] + kInsideTolVoxels - start_[a];
+      if (delta_[a] == 0) {
+        if (!(lo <= 0 && hi >= 0)) sLow_ = std::numeric_limits<double>::infinity();
+        continue;
+      }
+      const double s0 = lo / delta_[a], s1 = hi / delta_[a];
+      sLow_ = std::max(sLow_, std::min(s0, s1));
+      sHigh_ = std::min(sHigh_, std::max(s0, s1));
+    }
+    if (!start_.allFinite() || !delta_.allFinite()) sLow_ = std::numeric_limits<double>::infinity();
+  }
+  /// Intensity at p + s·n; NaN outside the grid's voxel-centre hull or where the image is not finite.
+  double at(double s) const {
+    const Grid& g = image_.grid;
+    int i0[3], i1[3];
+    double t[3];
+    if (!(s >= sLow_ && s <= sHigh_)) return kNaN;
+    for (int a = 0; a < 3; ++a) {
+      const double v = std::clamp(start_[a] + s * delta_[a], 0.0, upper_[a]);
+      i0[a] = std::min(static_cast<int>(v), std::max(g.dims[a] - 2, 0));
+      i1[a] = std::min(i0[a] + 1, g.dims[a] - 1);
+      t[a] = v - i0[a];
+    }
+    const size_t sx = static_cast<size_t>(i1[0] - i0[0]);
+    const size_t sy = static_cast<size_t>(g.dims[0]) * static_cast<size_t>(i1[1] - i0[1]);
+    const size_t sz =
+        static_cast<size_t>(g.dims[0]) * static_cast<size_t>(g.dims[1]) * static_cast<size_t>(i1[2] - i0[2]);
+    const float* c = image_.data.data() + g.index(i0[0], i0[1], i0[2]);
+    const double c00 = c[0] + t[0] * (double(c[sx]) - c[0]);
+    const double c10 = c[sy] + t[0] * (double(c[sy + sx]) - c[sy]);
+    const double c01 = c[sz] + t[0] * (double(c[sz + sx]) - c[sz]);
+    const double c11 = c[sz + sy] + t[0] * (double(c[sz + sy + sx]) - c[sz + sy]);
+    const double c0 = c00 + t[1] * (c10 - c00), c1 = c01 + t[1] * (c11 - c01);
+    const double value = c0 + t[2] * (c1 - c0);
+    return std::isfinite(value) ? value : kNaN;
+  }
+
+ private:
+  const ImageF& image_;
+  Eigen::Matrix3d worldToVoxel_;
+  Eigen::Vector3d start_ = Eigen::Vector3d::Zero(), delta_ = Eigen::Vector3d::Zero();
+  double upper_[3] = {0, 0, 0};
+  double sLow_ = 0, sHigh_ = -1;  // empty until setLine
+};
+
+/// Search lengths resolved against the voxel size (user input kept apart from derived values).
+struct ResolvedSearch {
+  double rangeMm = 0;  ///< ±range along the normal
+  double stepMm = 0;   ///< sample spacing along the normal
+  int halfSearch = 0;  ///< offsets −halfSearch..halfSearch (× step)
+};
+
+/// Throws ParameterError unless `value` is finite and ≥ 0.
+void requireNonNegative(const char* name, double value) {
+  if (!(std::isfinite(value) && value >= 0))
+    throw ParameterError(name, std::to_string(value), "must be finite and ≥ 0");
+}
+
+/// Number of steps of `stepMm` in `lengthMm` (at least 1), bounded.
+int stepsIn(const char* name, double lengthMm, double stepMm) {
+  const double n = std::round(lengthMm / stepMm);
+  if (!(n <= kMaxHalfSamples))
+    throw ParameterError(name, std::to_string(lengthMm), "is more than " + std::to_string(kMaxHalfSamples) + " steps");
+  return std::max(1, static_cast<int>(n));
+}
+
+/// Default step: 0.25 × the smallest voxel spacing of `grid`.
+double resolveStep(const TargetSearchOptions& opts, const Grid& grid) {
+  requireNonNegative("stepMm", opts.stepMm);
+  const double step = opts.stepMm > 0 ? opts.stepMm : 0.25 * grid.spacing.minCoeff();
+  if (!(std::isfinite(step) && step > 0)) throw ParameterError("grid.spacing", std::to_string(step), "must be > 0");
+  return step;
+}
+
+/// Validates the options and resolves range and step against the voxel size of `grid`.
+ResolvedSearch resolveSearch(const TargetSearchOptions& opts, const Grid& grid, double stepMm) {
+  requireNonNegative("rangeMm", opts.rangeMm);
+  requireNonNegative("distancePenalty", opts.distancePenalty);
+  if (opts.regularisationRings < 0)
+    throw ParameterError("regularisationRings", std::to_string(opts.regularisationRings), "must be ≥ 0");
+  ResolvedSearch r;
+  r.stepMm = stepMm;
+  r.rangeMm = opts.rangeMm > 0 ? opts.rangeMm : 4.0 * grid.spacing.maxCoeff();
+  r.halfSearch = stepsIn("rangeMm", r.rangeMm, r.stepMm);
+  return r;
+}
+
+/// Unit normal of row `v`, or false if the normal is zero or not finite.
+bool unitNormal(const Points& normals, Eigen::Index v, Eigen::Vector3d& n) {
+  n = normals.row(v).transpose();
+  const double len = n.norm();
+  if (!(std::isfinite(len) && len > 0)) return false;
+  n /= len;
+  return true;
+}
+
+/// Sub-sample position of the maximum of a parabola through (−1, ym), (0, y0), (+1, yp), in samples, and its value.
+/// No shift when the three points are not strictly concave.
+void parabolicPeak(double ym, double y0, double yp, double& shift, double& value) {
+  shift = 0;
+  value = y0;
+  const double denom = ym - 2 * y0 + yp;
+  if (!(denom < 0)) return;
+  shift = std::clamp(0.5 * (ym - yp) / denom, -0.5, 0.5);
+  value = y0 - 0.25 * (ym - yp) * shift;
+}
+
+/// One vertex's search outcome.
+struct VertexTarget {
+  double offsetMm = 0;  ///< along the normal
+  double score = 0;     ///< ≥ 0
+};
+
+/// Working buffers of the per-vertex search (one set per thread once the loop is parallel).
+struct SearchScratch {
+  std::vector<double> line, value, profile;
+};
+
+/// Picks the sample maximising value − penalty·|s|·max(value) among positive values (s = (i − half)·step), then
+/// climbs to the nearest local maximum of the unpenalised value; returns −1 if no value is positive.
+int penalisedArgmax(const std::vector<double>& value, int half, double stepMm, double penalty) {
+  double best = 0;
+  for (double v : value)
+    if (v > best) best = v;
+  if (!(best > 0)) return -1;
+  int arg = -1;
+  double bestScore = -std::numeric_limits<double>::infinity();
+  const int n = static_cast<int>(value.size());
+  for (int i = 0; i < n; ++i) {
+    if (!(value[i] > 0)) continue;
+    const double score = value[i] - penalty * std::abs(i - half) * stepMm * best;
+    if (score > bestScore) bestScore = score, arg = i;
+  }
+  // The penalty tilts the curve: move uphill to the true local maximum so the refinement is unbiased.
+  for (;;) {
+    if (arg + 1 < n && value[arg + 1] > value[arg])
+      ++arg;
+    else if (arg > 0 && value[arg - 1] > value[arg])
+      --arg;
+    else
+      break;
+  }
+  return arg;
+}
+
+/// Refines the maximum at index `arg` of `value` by a parabola through its neighbours (NaN neighbours: no shift);
+/// returns the target offset (mm) and value.
+VertexTarget refineAt(const std::vector<double>& value, int arg, int half, double stepMm) {
+  const int n = static_cast<int>(value.size());
+  double shift = 0, peak = value[arg];
+  if (arg > 0 && arg + 1 < n && std::isfinite(value[arg - 1]) && std::isfinite(value[arg + 1]))
+    parabolicPeak(value[arg - 1], value[arg], value[arg + 1], shift, peak);
+  return {(arg - half + shift) * stepMm, std::max(peak, 0.0)};
+}
+
+/// Centre of mass (in samples) of the positive lobe of `value` around its local maximum `arg`, within ±`window`
+/// samples of the centre (iterated to a fixed point, so the window ends up symmetric about the edge).
+double lobeCentroid(const std::vector<double>& value, int arg, double window) {
+  const int n = static_cast<int>(value.size());
+  // The peak's lobe: positive samples around it, cut at a dip once the profile climbs again by more than
+  // kLobeDip × the peak (a neighbouring edge of the same polarity must not drag the centre; interpolation kinks may).
+  const double climb = kLobeDip * value[arg];
+  auto extend = [&](int from, int dir) {
+    int end = from, dip = from;
+    for (int i = from + dir; i >= 0 && i < n && value[i] > 0; i += dir) {
+      if (value[i] < value[dip]) dip = i;
+      if (value[i] > value[dip] + climb) return dip;
+      end = i;
+    }
+    return end;
+  };
+  const int lo = extend(arg, -1), hi = extend(arg, +1);
+  double c = arg;
+  for (int it = 0; it < 20; ++it) {
+    const int a = std::max(lo, static_cast<int>(std::ceil(c - window)));
+    const int b = std::min(hi, static_cast<int>(std::floor(c + window)));
+    double sw = 0, swi = 0;
+    for (int i = a; i <= b; ++i) sw += value[i], swi += value[i] * i;
+    if (!(sw > 0)) break;
+    const double next = swi / sw;
+    const bool done = std::abs(next - c) < 1e-3;
+    c = next;
+    if (done) break;
+  }
+  return c;
+}
+
+/// Gradient mode for one vertex: the strongest directional derivative of sign `sign` along the line.
+VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r, double sign, double penalty,
+                            double lobeHalfWidthMm, SearchScratch& buf) {
+  const int half = r.halfSearch, n = 2 * half + 1;
+  // One extra sample each side so the central difference exists over the whole ±range.
+  buf.line.resize(static_cast<size_t>(n + 2));
+  for (int i = 0; i < n + 2; ++i) buf.line[i] = sampler.at((i - half - 1) * r.stepMm);
+  buf.value.assign(static_cast<size_t>(n), kNaN);
+  const double scale = sign / (2 * r.stepMm);
+  bool any = false;
+  for (int i = 0; i < n; ++i) {
+    const double d = (buf.line[i + 2] - buf.line[i]) * scale;  // NaN if a sample is outside
+    buf.value[i] = d;
+    any = any || d > 0;
+  }
+  if (!any) return {};
+  const int arg = penalisedArgmax(buf.value, half, r.stepMm, penalty);
+  if (arg < 0) return {};
+  // Score: the parabolic peak value. Position: the centre of mass of the lobe, exact for a partial-volume edge
+  // under linear interpolation (where the peak itself is a plateau one slice wide and a parabola is arbitrary).
+  VertexTarget t = refineAt(buf.value, arg, half, r.stepMm);
+  t.offsetMm = (lobeCentroid(buf.value, arg, lobeHalfWidthMm / r.stepMm) - half) * r.stepMm;
+  return t;
+}
+
+/// Profile mode for one vertex: the offset whose window best correlates (NCC) with the learned `profile`.
+VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, const double* profile, int profileHalf,
+                           double penalty, SearchScratch& buf) {
+  const int half = r.halfSearch, n = 2 * half + 1, len = 2 * profileHalf + 1;
+  double profileNorm = 0;
+  for (int i = 0; i < len; ++i) profileNorm += profile[i] * profile[i];
+  if (!(profileNorm > 0)) return {};
+  const int lineLen = n + len - 1;  // samples at (j − half − profileHalf)·step
+  buf.line.resize(static_cast<size_t>(lineLen));
+  for (int j = 0; j < lineLen; ++j) buf.line[j] = sampler.at((j - half - profileHalf) * r.stepMm);
+  buf.value.assign(static_cast<size_t>(n), kNaN);
+  bool any = false;
+  for (int o = 0; o < n; ++o) {
+    const double* w = buf.line.data() + o;
+    double sum = 0, sum2 = 0, dot = 0;
+    for (int i = 0; i < len; ++i) {
+      sum += w[i];
+      sum2 += w[i] * w[i];
+      dot += w[i] * profile[i];
+    }
+    if (!std::isfinite(sum)) continue;  // part of the window is outside the image
+    // The profile has zero mean, so Σ p·(w − mean w) = Σ p·w.
+    const double centred = sum2 - sum * sum / len;
+    const double norm = centred > 0 ? std::sqrt(centred) : 0;
+    const double ncc = norm > kFlatTol * std::sqrt(len) ? dot / (norm * std::sqrt(profileNorm)) : 0;
+    buf.value[o] = ncc;
+    any = any || ncc > 0;
+  }
+  if (!any) return {};
+  const int arg = penalisedArgmax(buf.value, half, r.stepMm, penalty);
+  if (arg < 0) return {};
+  VertexTarget t = refineAt(buf.value, arg, half, r.stepMm);
+  t.score = std::min(t.score, 1.0);
+  return t;
+}
+
+/// Score-weighted smoothing of `offsets` over the neighbour graph, `passes` times; vertices with score 0 keep their
+/// (zero) offset. Each pass: o_v ← Σ_{u ∈ {v} ∪ N(v)} w_u o_u / Σ w_u.
+void regulariseOffsets(Eigen::VectorXd& offsets, const Eigen::VectorXd& scores, const NeighborTable& neighbors,
+                       int passes) {
+  const Eigen::Index nv = offsets.size();
+  Eigen::VectorXd next(nv);
+  for (int pass = 0; pass < passes; ++pass) {
+    for (Eigen::Index v = 0; v < nv; ++v) {
+      next[v] = offsets[v];
+      if (!(scores[v] > 0)) continue;
+      double wsum = scores[v], osum = scores[v] * offsets[v];
+      for (Eigen::Index c = 0; c < neighbors.cols(); ++c) {
+        const int u = neighbors(v, c);
+        if (u < 0 || !(scores[u] > 0)) continue;
+        wsum += scores[u];
+        osum += scores[u] * offsets[u];
+      }
+      next[v] = osum / wsum;
+    }
+    offsets.swap(next);
+  }
+}
+
+/// Throws ParameterError unless positions and normals are #V×3 of the same size.
+void requireSameRows(const Points& positions, const Points& normals) {
+  if (positions.rows() != normals.rows())
+    throw ParameterError("normals.rows", std::to_string(normals.rows()),
+                         "must equal positions.rows = " + std::to_string(positions.rows()));
+}
+
+}  // namespace
+
+std::optional<double> ImageFeatures::sample(const Eigen::Vector3d& worldMm) const {
+  return sampleTrilinear(smoothed, worldMm);
+}
+
+ImageFeatures computeImageFeatures(const ImageF& image, double sigmaMm) {
+  requireNonNegative("sigmaMm", sigmaMm);
+  // Robust normalisation (1–99 %) so scores compare across MRI and CT. Images that are constant between those
+  // percentiles (tiny objects) fall back to min–max; a constant image becomes all zeros (no edges, no forces).
+  ImageF normalised;
+  if (percentile(image, 99.0) > percentile(image, 1.0)) {
+    normalised = normalizeIntensity(image, 1.0, 99.0);
+  } else if (percentile(image, 100.0) > percentile(image, 0.0)) {
+    normalised = normalizeIntensity(image, 0.0, 100.0);
+  } else {
+    normalised = image;
+    for (float& v : normalised.data)
+      if (std::isfinite(v)) v = 0.f;
+  }
+  ImageFeatures f;
+  f.sigmaMm = sigmaMm;
+  f.smoothed = gaussianSmooth(normalised, sigmaMm);
+  return f;
+}
+
+Polarity estimatePolarity(const ImageFeatures& features, const Points& positions, const Points& normals) {
+  requireSameRows(positions, normals);
+  LineSampler sampler(features.smoothed);
+  double inside = 0, outside = 0;
+  long nIn = 0, nOut = 0;
+  Eigen::Vector3d n;
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    if (!unitNormal(normals, v, n)) continue;
+    sampler.setLine(positions.row(v).transpose(), n);
+    for (int k = 1; k <= 6; ++k) {  // 0.5, 1.0, ..., 3.0 mm
+      const double d = 0.5 * k;
+      const double in = sampler.at(-d), out = sampler.at(d);
+      if (std::isfinite(in)) inside += in, ++nIn;
+      if (std::isfinite(out)) outside += out, ++nOut;
+    }
+  }
+  if (nIn == 0 || nOut == 0) return Polarity::BrightInside;
+  return outside / nOut > inside / nIn ? Polarity::DarkInside : Polarity::BrightInside;
+}
+
+LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
+                              const TargetSearchOptions& opts, const Grid& grid) {
+  requireSameRows(positions, normals);
+  requireNonNegative("profileHalfLengthMm", opts.profileHalfLengthMm);
+  LearnedProfiles lp;
+  lp.stepMm = resolveStep(opts, grid);
+  const double halfMm = opts.profileHalfLengthMm > 0 ? opts.profileHalfLengthMm : 2.0 * grid.spacing.maxCoeff();
+  lp.halfSamples = stepsIn("profileHalfLengthMm", halfMm, lp.stepMm);
+  const int len = 2 * lp.halfSamples + 1;
+  lp.profiles = Eigen::MatrixXd::Zero(positions.rows(), len);
+  LineSampler sampler(features.smoothed);
+  Eigen::VectorXd row(len);
+  Eigen::Vector3d n;
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    if (!unitNormal(normals, v, n)) continue;
+    sampler.setLine(positions.row(v).transpose(), n);
+    for (int i = 0; i < len; ++i) row[i] = sampler.at((i - lp.halfSamples) * lp.stepMm);
+    if (!row.allFinite()) continue;  // partly outside the image: no usable profile
+    row.array() -= row.mean();
+    const double norm = row.norm();
+    if (norm > kFlatTol * std::sqrt(len)) lp.profiles.row(v) = row / norm;
+  }
+  return lp;
+}
+
+TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
+                                 const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
+                                 const Grid& grid, const LearnedProfiles* profiles) {
+  requireSameRows(positions, normals);
+  const Eigen::Index nv = positions.rows();
+  if (polarity == Polarity::Auto)
+    throw ParameterError("polarity", "Auto", "must be resolved (estimatePolarity) before searchTargets");
+  const bool profileMode = opts.mode == TargetMode::Profile;
+  if (profileMode) {
+    if (!profiles) throw ParameterError("profiles", "null", "are required in Profile mode (learnProfiles)");
+    if (profiles->profiles.rows() != nv || profiles->profiles.cols() != 2 * profiles->halfSamples + 1 ||
+        !(profiles->stepMm > 0))
+      throw ParameterError("profiles.rows", std::to_string(profiles->profiles.rows()),
+                           "must be #V = " + std::to_string(nv) + " with 2·halfSamples+1 columns and a step > 0");
+  }
+  const bool regularise = opts.regularisationRings > 0 && neighbors.rows() > 0;
+  if (regularise) {
+    if (neighbors.rows() != nv)
+      throw ParameterError("neighbors.rows", std::to_string(neighbors.rows()), "must be #V = " + std::to_string(nv));
+    if (neighbors.size() > 0 && neighbors.maxCoeff() >= nv)
+      throw ParameterError("neighbors", std::to_string(neighbors.maxCoeff()), "index out of range");
+  }
+  // Profiles fix the step they were learned at; the search must slide them on the same lattice.
+  const ResolvedSearch r = resolveSearch(opts, grid, profileMode ? profiles->stepMm : resolveStep(opts, grid));
+  const double sign = polarity == Polarity::DarkInside ? 1.0 : -1.0;
+
+  TargetSearchResult out;
+  out.offsets = Eigen::VectorXd::Zero(nv);
+  out.scores = Eigen::VectorXd::Zero(nv);
+  LineSampler sampler(features.smoothed);
+  SearchScratch scratch;
+  Eigen::Vector3d n;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
+    sampler.setLine(positions.row(v).transpose(), n);
+    VertexTarget t;
+    if (profileMode) {
+      const Eigen::Index len = profiles->profiles.cols();
+      scratch.profile.resize(static_cast<size_t>(len));
+      for (Eigen::Index i = 0; i < len; ++i) scratch.profile[i] = profiles->profiles(v, i);  // rows not contiguous
+      t = profileSearch(sampler, r, scratch.profile.data(), profiles->halfSamples, opts.distancePenalty, scratch);
+    } else {
+      // Lobe half-width: the voxel's extent along n (support of the interpolated partial-volume edge) plus the
+      // smoothing's ±2σ.
+      const Eigen::Vector3d nVoxel = features.smoothed.grid.direction.transpose() * n;
+      const double footprintMm = features.smoothed.grid.spacing.dot(nVoxel.cwiseAbs());
+      const double lobeMm = std::max(footprintMm + 2 * features.sigmaMm, 2 * r.stepMm);
+      t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, scratch);
+    }
+    if (t.score > 0 && std::isfinite(t.offsetMm)) {
+      out.offsets[v] = t.offsetMm;
+      out.scores[v] = t.score;
+    }
+  }
+  out.residual = out.offsets.cwiseAbs();
+  if (regularise) regulariseOffsets(out.offsets, out.scores, neighbors, opts.regularisationRings);
+  out.targets = positions;
+  for (Eigen::Index v = 0; v < nv; ++v)
+    if (out.scores[v] > 0 && unitNormal(normals, v, n)) out.targets.row(v) += out.offsets[v] * n.transpose();
+  return out;
+}
+
+}  // namespace msk
