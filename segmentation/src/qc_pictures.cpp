@@ -1,0 +1,226 @@
+// OpenCV adapter behind msk/segmentation/qc_pictures.h: OpenCV types stay in this file.
+#include "msk/segmentation/qc_pictures.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <optional>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "msk/core/atomic_file.h"
+#include "msk/core/error.h"
+#include "msk/imaging/filters.h"
+
+namespace fs = std::filesystem;
+
+namespace msk {
+
+namespace {
+
+/// Saturated, mutually distinct colours (RGB); none is grey, so they never occur in the windowed image.
+constexpr std::array<std::array<uint8_t, 3>, 8> kPalette = {{{255, 40, 40},
+                                                             {40, 255, 40},
+                                                             {60, 120, 255},
+                                                             {255, 230, 0},
+                                                             {255, 0, 255},
+                                                             {0, 230, 255},
+                                                             {255, 140, 0},
+                                                             {160, 60, 255}}};
+
+/// Pictures have their longer side between these sizes (px).
+constexpr double kMinSidePx = 256, kMaxSidePx = 512;
+
+/// One display plane: world directions of increasing column and row, letters at the left, right and top edges.
+struct View {
+  const char* name;
+  Eigen::Vector3d right, down;
+  const char *leftLetter, *rightLetter, *topLetter;
+};
+
+/// Radiological display in RAS: +x is the patient's right, shown on the screen's left.
+const std::array<View, 3> kViews = {{
+    {"axial", {-1, 0, 0}, {0, -1, 0}, "R", "L", "A"},
+    {"coronal", {-1, 0, 0}, {0, 0, -1}, "R", "L", "S"},
+    {"sagittal", {0, -1, 0}, {0, 0, -1}, "A", "P", "S"},
+}};
+
+cv::Scalar bgr(const std::array<uint8_t, 3>& rgb, double factor = 1.0) {
+  return cv::Scalar(rgb[2] * factor, rgb[1] * factor, rgb[0] * factor);
+}
+
+/// Centroid (world mm) of the voxels of `label`, if any.
+std::optional<Eigen::Vector3d> labelCentroid(const LabelMap& labels, int label) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  size_t n = 0;
+  const Grid& g = labels.grid;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (labels.at(i, j, k) == label) {
+          sum += Eigen::Vector3d(i, j, k);
+          ++n;
+        }
+  if (n == 0) return std::nullopt;
+  return g.toWorld(sum / static_cast<double>(n));
+}
+
+/// The sampling plane of one picture: pixel (c, r) centre = corner + (c + ½)·pix·right + (r + ½)·pix·down.
+struct Plane {
+  Eigen::Vector3d corner;
+  double pix = 1;
+  int width = 1, height = 1;
+  Eigen::Vector3d at(int c, int r, const View& v) const {
+    return corner + (c + 0.5) * pix * v.right + (r + 0.5) * pix * v.down;
+  }
+};
+
+/// The plane through `centre` covering the image's voxel-centre bounding box along the view's two axes.
+Plane makePlane(const Grid& grid, const View& v, const Eigen::Vector3d& centre) {
+  const auto bounds = grid.worldBounds();
+  const Eigen::Vector3d lo = bounds[0], hi = bounds[1];
+  // Start on the side the axis runs from (the maximum for a negative direction).
+  auto edge = [&](const Eigen::Vector3d& d) {
+    Eigen::Vector3d e;
+    for (int a = 0; a < 3; ++a) e[a] = d[a] < 0 ? hi[a] : lo[a];
+    return e;
+  };
+  const double wMm = std::fabs(v.right.dot(hi - lo)), hMm = std::fabs(v.down.dot(hi - lo));
+  const double longest = std::max({wMm, hMm, 1e-6});
+  Plane p;
+  p.pix = grid.spacing.minCoeff();
+  if (longest / p.pix > kMaxSidePx) p.pix = longest / kMaxSidePx;
+  if (longest / p.pix < kMinSidePx) p.pix = longest / kMinSidePx;
+  p.width = std::max(1, static_cast<int>(std::ceil(wMm / p.pix)));
+  p.height = std::max(1, static_cast<int>(std::ceil(hMm / p.pix)));
+  // The corner: on the box edge the column and row axes run from, and at the centre along the plane's normal.
+  const Eigen::Vector3d startRight = edge(v.right), startDown = edge(v.down);
+  for (int a = 0; a < 3; ++a)
+    p.corner[a] = std::fabs(v.right[a]) > 0.5 ? startRight[a] : std::fabs(v.down[a]) > 0.5 ? startDown[a] : centre[a];
+  return p;
+}
+
+/// Labels sampled (nearest) on the plane; 0 outside the grid.
+cv::Mat labelSlice(const LabelMap& labels, const Plane& p, const View& v) {
+  cv::Mat out(p.height, p.width, CV_32S, cv::Scalar(0));
+  for (int r = 0; r < p.height; ++r)
+    for (int c = 0; c < p.width; ++c) out.at<int32_t>(r, c) = sampleNearest(labels, p.at(c, r, v)).value_or(0);
+  return out;
+}
+
+/// Outline of `label` in a sampled label slice.
+std::vector<std::vector<cv::Point>> contoursOf(const cv::Mat& slice, int label) {
+  cv::Mat mask = slice == label;  // 255 where equal
+  std::vector<std::vector<cv::Point>> contours;
+  if (cv::countNonZero(mask) > 0) cv::findContours(mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+  return contours;
+}
+
+/// White text with a dark outline, readable on any background.
+void text(cv::Mat& img, const std::string& s, cv::Point org) {
+  cv::putText(img, s, org, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
+  cv::putText(img, s, org, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+}
+
+std::string safeFileName(const std::string& name) {
+  std::string s = name.empty() ? "object" : name;
+  for (char& ch : s)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_' && ch != '.') ch = '_';
+  return s;
+}
+
+}  // namespace
+
+std::array<uint8_t, 3> qcObjectColour(size_t index) { return kPalette[index % kPalette.size()]; }
+
+std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& image, const LabelMap& labels,
+                                         const std::vector<QcObject>& objects, const LabelMap* reference) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw IoError(dir, "output folder does not exist");
+  for (const auto& o : objects)
+    if (o.label < 1) throw ParameterError("label of " + o.name, std::to_string(o.label), "must be >= 1");
+  if (objects.empty()) return {};
+
+  // Intensity window on the 1st–99th percentile of the finite voxels.
+  const double lo = percentile(image, 1.0);
+  double hi = percentile(image, 99.0);
+  if (!(hi > lo)) hi = lo + 1.0;
+  const auto bounds = image.grid.worldBounds();
+  const Eigen::Vector3d imageCentre = 0.5 * (bounds[0] + bounds[1]);
+
+  std::vector<std::string> written;
+  for (size_t oi = 0; oi < objects.size(); ++oi) {
+    const QcObject& obj = objects[oi];
+    std::optional<Eigen::Vector3d> centre = labelCentroid(labels, obj.label);
+    if (!centre && reference) centre = labelCentroid(*reference, obj.label);
+    for (const View& v : kViews) {
+      const Plane p = makePlane(image.grid, v, centre.value_or(imageCentre));
+      cv::Mat pic(p.height, p.width, CV_8UC3, cv::Scalar(0, 0, 0));
+      for (int r = 0; r < p.height; ++r)
+        for (int c = 0; c < p.width; ++c) {
+          const std::optional<double> s = sampleTrilinear(image, p.at(c, r, v));
+          if (!s || !std::isfinite(*s)) continue;
+          const auto grey = static_cast<uint8_t>(std::lround(255.0 * std::clamp((*s - lo) / (hi - lo), 0.0, 1.0)));
+          pic.at<cv::Vec3b>(r, c) = cv::Vec3b(grey, grey, grey);
+        }
+      // Others dimmed and thin, then the reference (white, thin), then the object on top.
+      const cv::Mat slice = labelSlice(labels, p, v);
+      for (size_t k = 0; k < objects.size(); ++k)
+        if (k != oi)
+          cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(qcObjectColour(k), 0.55), 1, cv::LINE_8);
+      if (reference)
+        cv::drawContours(pic, contoursOf(labelSlice(*reference, p, v), obj.label), -1, cv::Scalar(255, 255, 255), 1,
+                         cv::LINE_8);
+      cv::drawContours(pic, contoursOf(slice, obj.label), -1, bgr(qcObjectColour(oi)), 2, cv::LINE_8);
+
+      text(pic, obj.name + " " + v.name, cv::Point(6, 16));
+      text(pic, v.leftLetter, cv::Point(4, p.height / 2 + 5));
+      text(pic, v.rightLetter, cv::Point(std::max(0, p.width - 14), p.height / 2 + 5));
+      text(pic, v.topLetter, cv::Point(p.width / 2 - 4, 32));
+
+      const std::string path = (fs::path(dir) / (safeFileName(obj.name) + "_" + v.name + ".png")).string();
+      writeAtomically(path, [&](const std::string& tmp) {
+        bool ok = false;
+        try {
+          ok = cv::imwrite(tmp, pic);
+        } catch (const cv::Exception& e) {
+          throw IoError(path, std::string("cannot write PNG: ") + e.what());
+        }
+        if (!ok) throw IoError(path, "cannot write PNG");
+      });
+      written.push_back(path);
+    }
+  }
+  return written;
+}
+
+RgbPicture readRgbPicture(const std::string& path) {
+  // Checked first: OpenCV would print a warning of its own for a missing file.
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw IoError(path, "cannot read picture: no such file");
+  cv::Mat bgrImage;
+  try {
+    bgrImage = cv::imread(path, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    throw IoError(path, std::string("cannot read picture: ") + e.what());
+  }
+  if (bgrImage.empty()) throw IoError(path, "cannot read picture (missing or not an image)");
+  RgbPicture out;
+  out.width = bgrImage.cols;
+  out.height = bgrImage.rows;
+  out.rgb.resize(static_cast<size_t>(out.width) * static_cast<size_t>(out.height) * 3);
+  size_t n = 0;
+  for (int r = 0; r < out.height; ++r)
+    for (int c = 0; c < out.width; ++c) {
+      const cv::Vec3b px = bgrImage.at<cv::Vec3b>(r, c);
+      out.rgb[n++] = px[2];
+      out.rgb[n++] = px[1];
+      out.rgb[n++] = px[0];
+    }
+  return out;
+}
+
+}  // namespace msk
