@@ -17,6 +17,11 @@ int cmdEval(const std::vector<std::string>& args);
 int cmdRasterize(const std::vector<std::string>& args);
 /// mskseg convert: mesh formats and spaces.
 int cmdConvert(const std::vector<std::string>& args);
+/// mskseg template: smooth closed template surface from one label of a label map.
+int cmdTemplate(const std::vector<std::string>& args);
+
+/// mskseg segment: evolve a scene's templates into an image.
+int cmdSegment(const std::vector<std::string>& args);
 
 /// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
 ProgressFn stderrProgress(const std::string& task);

@@ -23,10 +23,12 @@ struct Command {
 const std::map<std::string, Command>& commands() {
   static const std::map<std::string, Command> table = {
       {"info", {msk::cli::cmdInfo, "describe a NIfTI volume (geometry, affine source, datatype, range) or a mesh"}},
+      {"segment", {msk::cli::cmdSegment, "segment the objects of a scene (templates -> surfaces, labels, report, QC)"}},
       {"phantom", {msk::cli::cmdPhantom, "generate a synthetic thigh MRI with exact ground truth"}},
       {"eval", {msk::cli::cmdEval, "Dice, Jaccard, ASSD, HD95, Hausdorff between label maps or meshes"}},
       {"rasterize", {msk::cli::cmdRasterize, "closed mesh -> label map on an image's grid"}},
       {"convert", {msk::cli::cmdConvert, "convert meshes between .vtk .vtp .stl .obj .ply and LPS/RAS"}},
+      {"template", {msk::cli::cmdTemplate, "smooth template surface from a label map"}},
   };
   return table;
 }

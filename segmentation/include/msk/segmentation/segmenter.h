@@ -1,0 +1,91 @@
+#pragma once
+/// The segmentation pipeline: template surfaces of a scene evolve as 2-simplex meshes under image targets, shape
+/// memory and a global shape prior, coarse to fine (DESIGN-NOTES §6, §7).
+#include <map>
+#include <string>
+#include <vector>
+
+#include "msk/core/constraints.h"
+#include "msk/core/json.h"
+#include "msk/core/log.h"
+#include "msk/core/pbd_solver.h"
+#include "msk/segmentation/image_forces.h"
+#include "msk/segmentation/scene.h"
+
+namespace msk {
+
+/// Speed/accuracy presets (the settings each maps to are in presetJson()).
+enum class Quality { Fast, Balanced, Accurate };
+
+/// Parses "fast" | "balanced" | "accurate"; throws ParameterError otherwise.
+Quality parseQuality(const std::string& text);
+/// Name of a preset.
+const char* qualityName(Quality q);
+
+/// Settings of one run. Values ≤ 0 in the "0 = preset" fields take the preset's value.
+struct SegmentOptions {
+  Quality quality = Quality::Balanced;  ///< preset
+  int levels = 0;               ///< mesh resolution levels, ×4 vertices apart (0 = preset)
+  int maxStepsPerLevel = 0;     ///< step cap per level (0 = preset)
+  double toleranceMm = 0;       ///< stop a level when no vertex moves more than this per step (0 = preset)
+  double internalStiffness = 0.35;  ///< γ of the 2-simplex shape memory, [0, 1]
+  double imageStiffness = 0.25;     ///< γ of the image targets, [0, 1]
+  double priorStart = 0.3;          ///< global prior weight λ at the start of the run, [0, 1]
+  double priorEnd = 0.02;           ///< λ at the end of the run (ramped linearly), [0, 1]
+  PriorTransform priorTransform = PriorTransform::Similarity;  ///< kind of the global fit
+  InternalMode internalMode = InternalMode::ShapeMemory;       ///< shape memory or smoothing
+  PbdOptions pbd;               ///< scheme settings
+};
+
+/// The settings a run actually used after the preset is applied (written into report.json).
+struct ResolvedSettings {
+  int levels = 2, maxStepsPerLevel = 60;
+  double toleranceMm = 0.02;
+  std::vector<double> sigmaMm;   ///< image scale per level, coarse first
+  std::vector<double> rangeMm;   ///< search range per level, coarse first
+};
+
+/// What one level of one object did.
+struct LevelReport {
+  int vertices = 0;         ///< simplex vertices
+  int steps = 0;            ///< steps taken
+  double lastMaxMoveMm = 0; ///< largest displacement in the last step
+  bool converged = false;   ///< stopped on tolerance (not on the step cap)
+  double sigmaMm = 0, rangeMm = 0;
+};
+
+/// The result for one object.
+struct ObjectResult {
+  std::string name;
+  int label = 0;
+  TriangleMesh mesh;  ///< final surface, RAS mm; point data "displacement_mm" and "image_residual_mm"
+  Polarity polarity = Polarity::Auto;  ///< the polarity used (estimated if auto)
+  std::vector<LevelReport> levels;     ///< coarse first
+  double seconds = 0;
+  double volumeMm3 = 0, templateVolumeMm3 = 0;
+  double meanImageResidualMm = 0;      ///< mean |target offset| at the end
+  std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
+};
+
+/// The result of a scene.
+struct SegmentationResult {
+  std::vector<ObjectResult> objects;
+  LabelMap labels;               ///< every object rasterised on the image grid with its label
+  ResolvedSettings settings;     ///< preset applied
+  double seconds = 0;            ///< whole run
+  std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
+  int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
+};
+
+/// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).
+ResolvedSettings resolveSettings(const SegmentOptions& opts, const Grid& grid);
+
+/// The options and resolved settings as JSON (for report.json).
+Json settingsJson(const SegmentOptions& opts, const ResolvedSettings& settings);
+
+/// Segments every object of the scene in `image` (RAS mm). Throws Error/ParameterError on bad input (NaN voxels,
+/// parameters out of range) before doing any work.
+SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
+                                const ProgressFn& progress = {});
+
+}  // namespace msk

@@ -1,0 +1,286 @@
+#include "msk/segmentation/segmenter.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+
+#include "msk/core/error.h"
+#include "msk/core/simplex_mesh.h"
+#include "msk/imaging/rasterize.h"
+#include "msk/imaging/surface_extraction.h"
+
+namespace msk {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+void checkUnit(const char* name, double v) {
+  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
+}
+
+/// Image features per scale, built on first use only.
+class FeatureCache {
+ public:
+  explicit FeatureCache(const ImageF& image) : image_(image) {}
+  const ImageFeatures& at(double sigmaMm) {
+    const long key = std::lround(sigmaMm * 1000.0);
+    auto it = cache_.find(key);
+    if (it == cache_.end()) {
+      const auto t0 = Clock::now();
+      it = cache_.emplace(key, computeImageFeatures(image_, sigmaMm)).first;
+      seconds_ += since(t0);
+    }
+    return it->second;
+  }
+  int built() const { return static_cast<int>(cache_.size()); }
+  double seconds() const { return seconds_; }
+
+ private:
+  const ImageF& image_;
+  std::map<long, ImageFeatures> cache_;
+  double seconds_ = 0;
+};
+
+/// Weights in [0, 1] from search scores: strong edges (≥ half the median positive score) get full weight.
+Eigen::VectorXd scoreWeights(const Eigen::VectorXd& scores) {
+  std::vector<double> pos;
+  for (int i = 0; i < scores.size(); ++i)
+    if (scores[i] > 0) pos.push_back(scores[i]);
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(scores.size());
+  if (pos.empty()) return w;
+  std::nth_element(pos.begin(), pos.begin() + pos.size() / 2, pos.end());
+  const double ref = 0.5 * pos[pos.size() / 2];
+  for (int i = 0; i < scores.size(); ++i) w[i] = ref > 0 ? std::min(1.0, scores[i] / ref) : 0.0;
+  return w;
+}
+
+struct LevelMeshes {
+  TriangleMesh triangles;  ///< template at this level
+  SimplexMesh simplex;     ///< its dual
+};
+
+}  // namespace
+
+Quality parseQuality(const std::string& t) {
+  if (t == "fast") return Quality::Fast;
+  if (t == "balanced") return Quality::Balanced;
+  if (t == "accurate") return Quality::Accurate;
+  throw ParameterError("quality", t, "must be fast, balanced or accurate");
+}
+
+const char* qualityName(Quality q) {
+  switch (q) {
+    case Quality::Fast: return "fast";
+    case Quality::Balanced: return "balanced";
+    case Quality::Accurate: return "accurate";
+  }
+  return "?";
+}
+
+ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
+  ResolvedSettings s;
+  const double minSp = grid.spacing.minCoeff(), maxSp = grid.spacing.maxCoeff();
+  int levels = 2, steps = 40;
+  double tolFactor = 0.02;
+  switch (o.quality) {
+    case Quality::Fast: levels = 2; steps = 25; tolFactor = 0.04; break;
+    case Quality::Balanced: levels = 2; steps = 50; tolFactor = 0.02; break;
+    case Quality::Accurate: levels = 3; steps = 100; tolFactor = 0.01; break;
+  }
+  s.levels = o.levels > 0 ? o.levels : levels;
+  s.maxStepsPerLevel = o.maxStepsPerLevel > 0 ? o.maxStepsPerLevel : steps;
+  s.toleranceMm = o.toleranceMm > 0 ? o.toleranceMm : tolFactor * minSp;
+  // Coarse levels see a smoother image over a longer range; the finest level a light blur over a short range.
+  for (int l = 0; l < s.levels; ++l) {
+    const double f = s.levels == 1 ? 0.0 : 1.0 - static_cast<double>(l) / (s.levels - 1);  // 1 coarse → 0 fine
+    s.sigmaMm.push_back(minSp * (0.5 + 1.0 * f));
+    s.rangeMm.push_back(maxSp * (1.5 + 1.5 * f) + 2.0 * f);
+  }
+  return s;
+}
+
+Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
+  Json j;
+  j["quality"] = qualityName(o.quality);
+  j["scheme"] = "position-based (Gauss-Seidel)";
+  j["levels"] = s.levels;
+  j["max_steps_per_level"] = s.maxStepsPerLevel;
+  j["tolerance_mm"] = s.toleranceMm;
+  Json sig = Json::array(), rng = Json::array();
+  for (double v : s.sigmaMm) sig.push(v);
+  for (double v : s.rangeMm) rng.push(v);
+  j["image_sigma_mm_per_level"] = sig;
+  j["search_range_mm_per_level"] = rng;
+  j["internal_stiffness"] = o.internalStiffness;
+  j["internal_mode"] = o.internalMode == InternalMode::ShapeMemory ? "shape-memory" : "smoothing";
+  j["image_stiffness"] = o.imageStiffness;
+  j["global_prior"] = o.priorTransform == PriorTransform::Rigid        ? "rigid"
+                      : o.priorTransform == PriorTransform::Similarity ? "similarity"
+                                                                       : "affine";
+  j["global_prior_weight_start"] = o.priorStart;
+  j["global_prior_weight_end"] = o.priorEnd;
+  j["pbd_dt"] = o.pbd.dt;
+  j["pbd_iterations"] = o.pbd.iterations;
+  j["pbd_damping"] = o.pbd.damping;
+  j["pbd_drag"] = o.pbd.drag;
+  return j;
+}
+
+namespace {
+
+ObjectResult segmentObject(const SceneObject& obj, const SegmentOptions& opts, const ResolvedSettings& rs,
+                           FeatureCache& features, const Grid& grid, const ProgressFn& progress, double progressBase,
+                           double progressSpan) {
+  const auto t0 = Clock::now();
+  ObjectResult out;
+  out.name = obj.name;
+  out.label = obj.label;
+  out.templateVolumeMm3 = enclosedVolume(obj.templ);
+
+  // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
+  std::vector<LevelMeshes> lv(static_cast<size_t>(rs.levels));
+  lv[0].triangles = obj.templ;
+  for (int l = 1; l < rs.levels; ++l) {
+    const int target = std::max(150, lv[l - 1].triangles.vertexCount() / 4);
+    lv[l].triangles = target < lv[l - 1].triangles.vertexCount() ? decimateMesh(lv[l - 1].triangles, target)
+                                                                 : lv[l - 1].triangles;
+  }
+  for (auto& l : lv) l.simplex = simplexFromTriangles(l.triangles);
+
+  TargetSearchOptions search;
+  search.mode = obj.hasForce ? obj.force : TargetMode::Gradient;
+
+  // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
+  const int coarsest = rs.levels - 1;
+  Polarity polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
+  if (polarity == Polarity::Auto) {
+    const ImageFeatures& f = features.at(rs.sigmaMm[0]);
+    polarity = estimatePolarity(f, lv[0].simplex.positions, simplexVertexNormals(lv[0].simplex));
+  }
+  out.polarity = polarity;
+
+  const int totalSteps = rs.levels * rs.maxStepsPerLevel;
+  int stepsDone = 0;
+  SimplexMesh current = lv[coarsest].simplex;
+  double searchSeconds = 0;
+  Eigen::VectorXd residual;
+  for (int l = coarsest; l >= 0; --l) {
+    const int order = coarsest - l;  // 0 for the coarsest level
+    const LevelMeshes& ref = lv[l];
+    if (l != coarsest) {
+      // Carry the displacement of the coarser level's surface over to this level's template.
+      const LevelMeshes& coarse = lv[l + 1];
+      const TriangleMesh moved = trianglesFromSimplex(current);
+      const Eigen::MatrixXd disp = moved.vertices - coarse.triangles.vertices;
+      SurfaceTransfer transfer(coarse.triangles, ref.triangles.vertices);
+      TriangleMesh start = ref.triangles;
+      start.vertices += transfer.apply(disp);
+      current = simplexFromTriangles(start);
+    }
+    const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
+    search.rangeMm = rs.rangeMm[order];
+    LearnedProfiles profiles;
+    if (search.mode == TargetMode::Profile)
+      profiles = learnProfiles(feat, ref.simplex.positions, simplexVertexNormals(ref.simplex), search, grid);
+
+    SimplexInternalConstraints internal(ref.simplex, opts.internalStiffness, opts.internalMode);
+    TargetConstraints targets(opts.imageStiffness);
+    ShapeMatchingConstraint prior(ref.simplex.positions, opts.priorTransform, opts.priorStart);
+    PbdSolver solver(opts.pbd);
+    const Eigen::VectorXd invMass = Eigen::VectorXd::Ones(current.vertexCount());
+    solver.prepare(current.positions, invMass);
+    std::vector<ConstraintSet*> sets = {&targets, &internal, &prior};
+
+    LevelReport rep;
+    rep.vertices = current.vertexCount();
+    rep.sigmaMm = rs.sigmaMm[order];
+    rep.rangeMm = search.rangeMm;
+    for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
+      const double runFraction = static_cast<double>(stepsDone) / std::max(1, totalSteps - 1);
+      prior.setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
+      current.positions = solver.positions();
+      const auto ts = Clock::now();
+      const Points normals = simplexVertexNormals(current);
+      const TargetSearchResult found = searchTargets(feat, current.positions, normals, current.neighbors, search,
+                                                     polarity, grid, search.mode == TargetMode::Profile ? &profiles : nullptr);
+      searchSeconds += since(ts);
+      targets.setTargets(found.targets, scoreWeights(found.scores));
+      residual = found.residual;
+      rep.lastMaxMoveMm = solver.step(sets);
+      ++rep.steps;
+      ++stepsDone;
+      if (progress)
+        progress(progressBase + progressSpan * std::min(1.0, static_cast<double>(stepsDone) / totalSteps),
+                 obj.name + " level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels));
+      if (rep.lastMaxMoveMm < rs.toleranceMm) {
+        rep.converged = true;
+        break;
+      }
+    }
+    stepsDone = (order + 1) * rs.maxStepsPerLevel;
+    current.positions = solver.positions();
+    for (const auto& kv : solver.secondsPerFamily()) out.secondsPerFamily[kv.first] += kv.second;
+    out.levels.push_back(rep);
+  }
+  out.secondsPerFamily["image-search"] += searchSeconds;
+
+  // Final surface on the template's own triangulation, with per-vertex displacement and image residual.
+  current.pointData.clear();
+  current.pointData["image_residual_mm"] = residual.size() == current.vertexCount()
+                                               ? residual
+                                               : Eigen::VectorXd::Zero(current.vertexCount());
+  out.mesh = trianglesFromSimplex(current);
+  out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - obj.templ.vertices).rowwise().norm();
+  out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
+  out.volumeMm3 = enclosedVolume(out.mesh);
+  out.seconds = since(t0);
+  const std::string problem = closedMeshProblem(out.mesh);
+  if (!problem.empty()) throw Error(obj.name + ": the evolved surface is invalid: " + problem);
+  return out;
+}
+
+}  // namespace
+
+SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
+                                const ProgressFn& progress) {
+  const auto t0 = Clock::now();
+  checkUnit("internal stiffness", opts.internalStiffness);
+  checkUnit("image stiffness", opts.imageStiffness);
+  checkUnit("global prior start", opts.priorStart);
+  checkUnit("global prior end", opts.priorEnd);
+  if (opts.levels < 0 || opts.levels > 5) throw ParameterError("levels", std::to_string(opts.levels), "must be 0..5");
+  if (opts.maxStepsPerLevel < 0 || opts.maxStepsPerLevel > 100000)
+    throw ParameterError("max steps", std::to_string(opts.maxStepsPerLevel), "must be 0..100000");
+  if (!(opts.toleranceMm >= 0) || !std::isfinite(opts.toleranceMm))
+    throw ParameterError("tolerance", std::to_string(opts.toleranceMm), "must be ≥ 0 mm");
+  PbdSolver validate(opts.pbd);  // throws on bad scheme settings
+  const std::string gridProblem = image.grid.problem();
+  if (!gridProblem.empty()) throw Error("image: " + gridProblem);
+  for (float v : image.data)
+    if (!std::isfinite(v)) throw Error("image has NaN/Inf voxels");
+  if (scene.objects.empty()) throw Error("scene has no objects");
+
+  SegmentationResult res;
+  res.settings = resolveSettings(opts, image.grid);
+  FeatureCache features(image);
+  const double span = 1.0 / static_cast<double>(scene.objects.size());
+  const auto te = Clock::now();
+  for (size_t i = 0; i < scene.objects.size(); ++i)
+    res.objects.push_back(segmentObject(scene.objects[i], opts, res.settings, features, image.grid, progress,
+                                        span * static_cast<double>(i), span));
+  res.secondsPerStage["evolution"] = since(te) - features.seconds();
+  res.secondsPerStage["features"] = features.seconds();
+  res.featureScalesBuilt = features.built();
+
+  const auto tr = Clock::now();
+  res.labels = LabelMap(image.grid, 0);
+  for (const auto& o : res.objects) rasterizeInto(res.labels, o.mesh, o.label);
+  res.secondsPerStage["rasterise"] = since(tr);
+  res.seconds = since(t0);
+  if (progress) progress(1.0, "done");
+  return res;
+}
+
+}  // namespace msk

@@ -1,0 +1,115 @@
+// Property tests of the segmentation pipeline on synthetic images with known answers.
+#include "msk/segmentation/segmenter.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+#include "msk/imaging/grid.h"
+
+namespace {
+
+/// A ball (or ellipsoid with semi-axes `axes`) image with partial volume: `inside` in, `outside` out.
+msk::ImageF ellipsoidImage(const msk::Grid& g, const Eigen::Vector3d& center, const Eigen::Vector3d& axes,
+                           float inside, float outside) {
+  msk::ImageF img(g, outside);
+  const int ss = 4;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        int in = 0;
+        for (int a = 0; a < ss; ++a)
+          for (int b = 0; b < ss; ++b)
+            for (int c = 0; c < ss; ++c) {
+              const Eigen::Vector3d ijk(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5);
+              const Eigen::Vector3d q = (g.toWorld(ijk) - center).cwiseQuotient(axes);
+              in += q.squaredNorm() <= 1.0;
+            }
+        const double f = static_cast<double>(in) / (ss * ss * ss);
+        img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
+      }
+  return img;
+}
+
+msk::Grid cubeGrid(double spacing, double halfWidthMm, const Eigen::Vector3d& rotDeg = Eigen::Vector3d::Zero()) {
+  msk::Grid g;
+  const int n = static_cast<int>(std::ceil(2 * halfWidthMm / spacing));
+  g.dims = {n, n, n};
+  g.spacing = Eigen::Vector3d::Constant(spacing);
+  g.direction = msk::Grid::rotationXYZ(rotDeg);
+  g.origin = -g.direction * g.spacing.cwiseProduct(Eigen::Vector3d::Constant((n - 1) / 2.0));
+  return g;
+}
+
+msk::Scene oneObjectScene(const msk::TriangleMesh& templ, msk::ObjectKind kind = msk::ObjectKind::Generic) {
+  msk::Scene s;
+  msk::SceneObject o;
+  o.name = "ball";
+  o.label = 1;
+  o.kind = kind;
+  o.templ = templ;
+  s.objects.push_back(o);
+  return s;
+}
+
+double meanRadialError(const msk::TriangleMesh& m, const Eigen::Vector3d& c, double r, double* maxErr = nullptr) {
+  double sum = 0, mx = 0;
+  for (int i = 0; i < m.vertexCount(); ++i) {
+    const double e = std::fabs((m.vertices.row(i).transpose() - c).norm() - r);
+    sum += e;
+    mx = std::max(mx, e);
+  }
+  if (maxErr) *maxErr = mx;
+  return sum / m.vertexCount();
+}
+
+}  // namespace
+
+// A simplex sphere started 3 mm inside or outside a ball converges to its radius within 0.25 voxel.
+TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
+  const double spacing = 1.0, r = 20.0;
+  const msk::Grid g = cubeGrid(spacing, 32, {10, -5, 20});
+  const Eigen::Vector3d c(0.7, -0.4, 0.3);
+  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(r), 200.f, 800.f);
+  for (double start : {r - 3.0, r + 3.0}) {
+    msk::SegmentOptions opts;
+    const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(start, 3, c)), opts);
+    double mx = 0;
+    const double mean = meanRadialError(res.objects[0].mesh, c, r, &mx);
+    std::printf("start r=%.1f: mean |r-20| = %.3f mm, max %.3f mm, %d+%d steps\n", start, mean, mx,
+                res.objects[0].levels[0].steps, res.objects[0].levels.back().steps);
+    EXPECT_LT(mean, 0.25 * spacing) << "start radius " << start;
+    EXPECT_LT(mx, 1.0 * spacing) << "start radius " << start;
+    EXPECT_EQ(msk::closedMeshProblem(res.objects[0].mesh), "");
+  }
+}
+
+// A template already on the boundary of its own image stays put.
+TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
+  const msk::Grid g = cubeGrid(1.0, 30);
+  const Eigen::Vector3d axes(22, 16, 12);
+  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  msk::TriangleMesh templ = msk::makeIcosphere(1.0, 4);
+  for (int i = 0; i < templ.vertexCount(); ++i) templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose());
+  msk::SegmentOptions opts;
+  const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(templ), opts);
+  const Eigen::VectorXd& disp = res.objects[0].mesh.pointData.at("displacement_mm");
+  std::printf("static template: mean displacement %.4f mm, max %.4f mm\n", disp.mean(), disp.maxCoeff());
+  EXPECT_LT(disp.mean(), 0.1);
+}
+
+TEST(Segmenter, RefusesBadParametersAndNaNImages) {
+  const msk::Grid g = cubeGrid(2.0, 10);
+  msk::ImageF img(g, 1.f);
+  const msk::Scene s = oneObjectScene(msk::makeIcosphere(5, 2));
+  msk::SegmentOptions bad;
+  bad.internalStiffness = 1.5;
+  EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
+  bad = {};
+  bad.pbd.dt = -1;
+  EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
+  img.data[5] = NAN;
+  EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
+  EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);
+}
