@@ -32,13 +32,14 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "mesh-space"},
+             "image-stiffness", "prior", "prior-start", "prior-end", "mesh-space"},
             {"help", "no-qc"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
            "                      [--levels N] [--steps N] [--tolerance MM] [--internal-stiffness G]\n"
-           "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--mesh-space lps|ras]\n"
+           "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--prior-start L]\n"
+           "                      [--prior-end L] [--mesh-space lps|ras]\n"
            "                      [--no-qc]\n\n"
            "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
            "its shape memory and a global shape prior. Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
@@ -46,7 +47,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 2 levels x 25 steps, balanced = 2 x 50,\n"
            "              accurate = 3 x 100; --levels/--steps/--tolerance override it\n"
-           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 0.35, 0.25)\n";
+           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 0.35, 0.25)\n"
+           "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.02)\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -61,6 +63,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (opts.toleranceMm < 0) throw ParameterError("--tolerance", args.str("tolerance"), "must be ≥ 0 mm");
   opts.internalStiffness = args.num("internal-stiffness", opts.internalStiffness);
   opts.imageStiffness = args.num("image-stiffness", opts.imageStiffness);
+  opts.priorStart = args.num("prior-start", opts.priorStart);
+  opts.priorEnd = args.num("prior-end", opts.priorEnd);
   const std::string prior = args.str("prior", "similarity");
   if (prior == "rigid") opts.priorTransform = PriorTransform::Rigid;
   else if (prior == "similarity") opts.priorTransform = PriorTransform::Similarity;
@@ -68,7 +72,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   else throw ParameterError("--prior", prior, "must be rigid, similarity or affine");
   const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));
   for (auto [name, v] : {std::pair{"--internal-stiffness", opts.internalStiffness},
-                         std::pair{"--image-stiffness", opts.imageStiffness}})
+                         std::pair{"--image-stiffness", opts.imageStiffness},
+                         std::pair{"--prior-start", opts.priorStart}, std::pair{"--prior-end", opts.priorEnd}})
     if (!(v >= 0 && v <= 1)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
 
   const std::string imagePath = args.str("image"), scenePath = args.str("scene"), out = args.str("out");

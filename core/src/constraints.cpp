@@ -56,8 +56,10 @@ bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
     // constraint (linear momentum still conserved).
     lambda << eps[0], eps[1], eps[2];
   }
+  // The reduced mass m̄ = 1/(w + Σ ε̃i λi wi) must not exceed the plain one: a denominator below w (negative
+  // λ-weighted reactions) or extreme λ makes the linearised step overshoot, and repeated projection diverges.
   double denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
-  if (!(denom > 0.1 * w) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 10.0) {
+  if (!(denom >= w) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
     lambda << eps[0], eps[1], eps[2];
     denom = w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
     if (!(denom > 0)) return false;

@@ -221,6 +221,12 @@ ObjectResult segmentObject(const SceneObject& obj, const SegmentOptions& opts, c
     }
     stepsDone = (order + 1) * rs.maxStepsPerLevel;
     current.positions = solver.positions();
+    // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
+    const double refDiag = (ref.simplex.positions.colwise().maxCoeff() - ref.simplex.positions.colwise().minCoeff()).norm();
+    const double curDiag = (current.positions.colwise().maxCoeff() - current.positions.colwise().minCoeff()).norm();
+    if (!(curDiag < 5.0 * refDiag && curDiag > 0.2 * refDiag))
+      throw Error(obj.name + ": evolution diverged at level " + std::to_string(order + 1) + " (size ×" +
+                  std::to_string(curDiag / refDiag) + " of the template); lower the stiffness or check the image");
     for (const auto& kv : solver.secondsPerFamily()) out.secondsPerFamily[kv.first] += kv.second;
     out.levels.push_back(rep);
   }

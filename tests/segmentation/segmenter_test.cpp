@@ -99,6 +99,29 @@ TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
   EXPECT_LT(disp.mean(), 0.1);
 }
 
+// Stiffness at the ends of its range stays stable: γ = 0 (no shape memory) and γ = 1 (full projection).
+TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
+  const msk::Grid g = cubeGrid(1.2, 30);
+  const Eigen::Vector3d c(0.5, 0.2, -0.3);
+  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(18.0), 900.f, 150.f);
+  for (double gamma : {0.0, 1e-12, 1.0}) {
+    for (double image : {0.0, 1.0}) {
+      msk::SegmentOptions opts;
+      opts.internalStiffness = gamma;
+      opts.imageStiffness = image;
+      const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(16.0, 3, c)), opts);
+      const msk::TriangleMesh& m = res.objects[0].mesh;
+      ASSERT_TRUE(m.vertices.allFinite());
+      double mx = 0;
+      const double mean = meanRadialError(m, c, image > 0 ? 18.0 : 16.0, &mx);
+      std::printf("gamma %.0e image %.0f: mean radial error %.3f mm, max %.3f mm\n", gamma, image, mean, mx);
+      if (image == 0.0) EXPECT_LT(mx, 0.5);          // no image force: the template barely moves
+      else if (gamma > 0.5) EXPECT_LT(mean, 0.3);    // stiff shape memory still reaches the edge
+      else EXPECT_LT(mean, 1.0);                     // no memory: noisy but bounded
+    }
+  }
+}
+
 TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   const msk::Grid g = cubeGrid(2.0, 10);
   msk::ImageF img(g, 1.f);
