@@ -1,0 +1,72 @@
+// The acceptance check for single objects: the femur of phantoms (the bundled seed and five others,
+// oblique and anisotropic grids included) segmented from the mean template: ASSD ≤ 0.6 mm and Dice ≥ 0.95.
+#include <cstdio>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/metrics.h"
+#include "msk/segmentation/phantom.h"
+#include "msk/segmentation/scene.h"
+#include "msk/segmentation/segmenter.h"
+
+namespace {
+
+struct Case {
+  uint32_t seed;
+  Eigen::Vector3d spacing, oblique;
+};
+
+void checkFemur(const std::string& what, const msk::ImageF& image, const msk::LabelMap& truthLabels,
+                const msk::TriangleMesh& truthMesh, const msk::TriangleMesh& templ) {
+  msk::Scene scene;
+  msk::SceneObject femur;
+  femur.name = "femur";
+  femur.label = 1;
+  femur.kind = msk::ObjectKind::Bone;
+  femur.templ = templ;
+  scene.objects.push_back(femur);
+  const msk::SegmentationResult res = msk::segmentScene(image, scene, msk::SegmentOptions{});
+  const msk::SegmentationMetrics vox = msk::labelMetrics(res.labels, 1, truthLabels, 1);
+  const msk::SegmentationMetrics mesh = msk::meshMetrics(res.objects[0].mesh, truthMesh);
+  const msk::SegmentationMetrics start = msk::meshMetrics(templ, truthMesh);
+  std::printf("%-34s template ASSD %.2f mm -> labels: Dice %.4f ASSD %.3f mm HD95 %.2f mm | mesh: ASSD %.3f mm "
+              "HD95 %.2f mm | %.2f s\n",
+              what.c_str(), start.assd, vox.dice, vox.assd, vox.hd95, mesh.assd, mesh.hd95, res.seconds);
+  EXPECT_GE(vox.dice, 0.95) << what;
+  EXPECT_LE(vox.assd, 0.6) << what;
+  EXPECT_LE(mesh.assd, 0.6) << what;
+}
+
+}  // namespace
+
+TEST(FemurPhantom, BundledSampleFromTheMeanTemplate) {
+  const std::string dir = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+  const msk::Scene scene = msk::loadScene(dir + "scene.json");
+  ASSERT_EQ(scene.objects[0].name, "femur");
+  checkFemur("bundled seed 1 (1.2x1.2x3)", msk::readNifti<float>(dir + "image.nii.gz"),
+             msk::readNifti<int32_t>(dir + "labels.nii.gz"), msk::readMesh(dir + "truth_femur.vtk"),
+             scene.objects[0].templ);
+}
+
+TEST(FemurPhantom, FiveOtherSeedsIncludingObliqueAndAnisotropicGrids) {
+  const Case cases[] = {{2, {1.2, 1.2, 3}, {0, 0, 0}},
+                        {3, {1.2, 1.2, 3}, {10, -15, 20}},
+                        {4, {1, 1.5, 2.5}, {0, 0, 0}},
+                        {5, {0.9, 0.9, 4}, {-20, 10, 5}},
+                        {6, {1.5, 1.5, 1.5}, {0, 0, 30}}};
+  for (const Case& c : cases) {
+    msk::PhantomOptions o;
+    o.seed = c.seed;
+    o.spacing = c.spacing;
+    o.obliqueDegrees = c.oblique;
+    const msk::Phantom p = msk::makePhantom(o);
+    ASSERT_EQ(p.objects[0].name, "femur");
+    char what[96];
+    std::snprintf(what, sizeof what, "seed %u (%gx%gx%g, oblique %g,%g,%g)", c.seed, c.spacing[0], c.spacing[1],
+                  c.spacing[2], c.oblique[0], c.oblique[1], c.oblique[2]);
+    checkFemur(what, p.image, p.labels, p.objects[0].truth, p.objects[0].templ);
+  }
+}
