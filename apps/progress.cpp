@@ -26,6 +26,7 @@ ProgressFn stderrProgress(const std::string& task) {
     int pct = static_cast<int>(std::lround(100.0 * std::min(1.0, std::max(0.0, f))));
     auto now = std::chrono::steady_clock::now();
     bool newStage = stage != st->stage;
+    if (!newStage && pct == st->lastPercent) return;
     if (!newStage && pct != 100 && (pct - st->lastPercent < 10 || now - st->last < std::chrono::milliseconds(500))) return;
     st->stage = stage;
     st->lastPercent = pct;

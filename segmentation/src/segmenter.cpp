@@ -281,8 +281,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   res.featureScalesBuilt = features.built();
 
   const auto tr = Clock::now();
+  // Overlaps (until collision response resolves them) go to bones: muscles and generic objects are written first.
   res.labels = LabelMap(image.grid, 0);
-  for (const auto& o : res.objects) rasterizeInto(res.labels, o.mesh, o.label);
+  for (ObjectKind pass : {ObjectKind::Generic, ObjectKind::Muscle, ObjectKind::Bone})
+    for (size_t i = 0; i < res.objects.size(); ++i)
+      if (scene.objects[i].kind == pass) rasterizeInto(res.labels, res.objects[i].mesh, res.objects[i].label);
   res.secondsPerStage["rasterise"] = since(tr);
   res.seconds = since(t0);
   if (progress) progress(1.0, "done");

@@ -70,7 +70,7 @@ struct ObjectResult {
 /// The result of a scene.
 struct SegmentationResult {
   std::vector<ObjectResult> objects;
-  LabelMap labels;               ///< every object rasterised on the image grid with its label
+  LabelMap labels;               ///< every object rasterised on the image grid with its label (bones win overlaps)
   ResolvedSettings settings;     ///< preset applied
   double seconds = 0;            ///< whole run
   std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
