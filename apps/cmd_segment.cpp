@@ -32,14 +32,14 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "mesh-space"},
+             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space"},
             {"help", "no-qc"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
            "                      [--levels N] [--steps N] [--tolerance MM] [--internal-stiffness G]\n"
            "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--prior-start L]\n"
-           "                      [--prior-end L] [--mesh-space lps|ras]\n"
+           "                      [--prior-end L] [--mesh-space lps|ras] [advanced options below]\n"
            "                      [--no-qc]\n\n"
            "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
            "its shape memory and a global shape prior. Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
@@ -47,8 +47,13 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 2 levels x 25 steps, balanced = 2 x 50,\n"
            "              accurate = 3 x 100; --levels/--steps/--tolerance override it\n"
-           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 0.35, 0.25)\n"
-           "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.02)\n";
+           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 1, 0.25)\n"
+           "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.1)\n"
+           "advanced (relative to the voxel size, so they hold at any resolution):\n"
+           "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
+           "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
+           "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
+           "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -65,6 +70,13 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.imageStiffness = args.num("image-stiffness", opts.imageStiffness);
   opts.priorStart = args.num("prior-start", opts.priorStart);
   opts.priorEnd = args.num("prior-end", opts.priorEnd);
+  opts.sigmaFine = args.num("sigma-fine", opts.sigmaFine);
+  opts.sigmaCoarse = args.num("sigma-coarse", opts.sigmaCoarse);
+  opts.rangeFine = args.num("range-fine", opts.rangeFine);
+  opts.rangeCoarse = args.num("range-coarse", opts.rangeCoarse);
+  opts.edgePenalty = args.num("edge-penalty", opts.edgePenalty);
+  opts.farTargetScaleMm = args.num("far-target", opts.farTargetScaleMm);
+  if (!(opts.farTargetScaleMm >= 0)) throw ParameterError("--far-target", args.str("far-target"), "must be >= 0 mm");
   const std::string prior = args.str("prior", "similarity");
   if (prior == "rigid") opts.priorTransform = PriorTransform::Rigid;
   else if (prior == "similarity") opts.priorTransform = PriorTransform::Similarity;

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <tuple>
 
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"
@@ -95,8 +96,8 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   // Coarse levels see a smoother image over a longer range; the finest level a light blur over a short range.
   for (int l = 0; l < s.levels; ++l) {
     const double f = s.levels == 1 ? 0.0 : 1.0 - static_cast<double>(l) / (s.levels - 1);  // 1 coarse → 0 fine
-    s.sigmaMm.push_back(minSp * (0.5 + 1.0 * f));
-    s.rangeMm.push_back(maxSp * (1.5 + 1.5 * f) + 2.0 * f);
+    s.sigmaMm.push_back(minSp * (o.sigmaFine + (o.sigmaCoarse - o.sigmaFine) * f));
+    s.rangeMm.push_back(maxSp * (o.rangeFine + (o.rangeCoarse - o.rangeFine) * f) + 2.0 * f);
   }
   return s;
 }
@@ -121,6 +122,12 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
                                                                        : "affine";
   j["global_prior_weight_start"] = o.priorStart;
   j["global_prior_weight_end"] = o.priorEnd;
+  j["far_target_scale_mm"] = o.farTargetScaleMm;
+  j["sigma_fine_voxels"] = o.sigmaFine;
+  j["sigma_coarse_voxels"] = o.sigmaCoarse;
+  j["range_fine_voxels"] = o.rangeFine;
+  j["range_coarse_voxels"] = o.rangeCoarse;
+  j["edge_penalty_per_mm"] = o.edgePenalty;
   j["pbd_dt"] = o.pbd.dt;
   j["pbd_iterations"] = o.pbd.iterations;
   j["pbd_damping"] = o.pbd.damping;
@@ -151,6 +158,7 @@ ObjectResult segmentObject(const SceneObject& obj, const SegmentOptions& opts, c
 
   TargetSearchOptions search;
   search.mode = obj.hasForce ? obj.force : TargetMode::Gradient;
+  search.distancePenalty = opts.edgePenalty;
 
   // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
   const int coarsest = rs.levels - 1;
@@ -206,7 +214,11 @@ ObjectResult segmentObject(const SceneObject& obj, const SegmentOptions& opts, c
       const TargetSearchResult found = searchTargets(feat, current.positions, normals, current.neighbors, search,
                                                      polarity, grid, search.mode == TargetMode::Profile ? &profiles : nullptr);
       searchSeconds += since(ts);
-      targets.setTargets(found.targets, scoreWeights(found.scores));
+      Eigen::VectorXd weights = scoreWeights(found.scores);
+      if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less
+        for (int i = 0; i < weights.size(); ++i)
+          weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
+      targets.setTargets(found.targets, weights);
       residual = found.residual;
       rep.lastMaxMoveMm = solver.step(sets);
       ++rep.steps;
@@ -262,6 +274,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   if (!(opts.toleranceMm >= 0) || !std::isfinite(opts.toleranceMm))
     throw ParameterError("tolerance", std::to_string(opts.toleranceMm), "must be ≥ 0 mm");
   PbdSolver validate(opts.pbd);  // throws on bad scheme settings
+  for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine, 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
+                             std::tuple{"range fine", opts.rangeFine, 20.0}, std::tuple{"range coarse", opts.rangeCoarse, 20.0},
+                             std::tuple{"edge penalty", opts.edgePenalty, 10.0}})
+    if (!(v >= 0 && v <= hi)) throw ParameterError(name, std::to_string(v), "must be in [0, " + std::to_string(hi) + "]");
+  if (!(opts.rangeFine > 0)) throw ParameterError("range fine", std::to_string(opts.rangeFine), "must be positive");
   const std::string gridProblem = image.grid.problem();
   if (!gridProblem.empty()) throw Error("image: " + gridProblem);
   for (float v : image.data)

@@ -28,11 +28,17 @@ struct SegmentOptions {
   int levels = 0;               ///< mesh resolution levels, ×4 vertices apart (0 = preset)
   int maxStepsPerLevel = 0;     ///< step cap per level (0 = preset)
   double toleranceMm = 0;       ///< stop a level when no vertex moves more than this per step (0 = preset)
-  double internalStiffness = 0.35;  ///< γ of the 2-simplex shape memory, [0, 1]
+  double internalStiffness = 1.0;   ///< γ of the 2-simplex shape memory, [0, 1]
   double imageStiffness = 0.25;     ///< γ of the image targets, [0, 1]
   double priorStart = 0.3;          ///< global prior weight λ at the start of the run, [0, 1]
-  double priorEnd = 0.02;           ///< λ at the end of the run (ramped linearly), [0, 1]
+  double priorEnd = 0.1;            ///< λ at the end of the run (ramped linearly), [0, 1]
   PriorTransform priorTransform = PriorTransform::Similarity;  ///< kind of the global fit
+  double sigmaFine = 0.5;     ///< image scale σ at the finest level, in units of the smallest voxel spacing
+  double sigmaCoarse = 1.5;   ///< σ at the coarsest level, same units (levels in between interpolate)
+  double rangeFine = 1.5;     ///< search range ± at the finest level, in units of the largest voxel spacing
+  double rangeCoarse = 3.0;   ///< search range at the coarsest level, same units, plus 2 mm
+  double farTargetScaleMm = 0;  ///< > 0: a target d mm away pulls with weight 1/(1 + (d/scale)²) (robust to outliers)
+  double edgePenalty = 0.1;   ///< score lost per mm of distance from the vertex (relative to the best edge)
   InternalMode internalMode = InternalMode::ShapeMemory;       ///< shape memory or smoothing
   PbdOptions pbd;               ///< scheme settings
 };
