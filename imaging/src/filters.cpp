@@ -38,24 +38,15 @@ std::vector<double> gaussianKernel(double sigmaVoxels) {
 void convolveAxis(std::vector<float>& data, const Grid& grid, int axis, const std::vector<double>& kernel) {
   const int n = grid.dims[axis];
   const int radius = static_cast<int>(kernel.size() / 2);
-  const size_t stride = axis == 0 ? 1 : axis == 1 ? static_cast<size_t>(grid.dims[0])
-                                                  : static_cast<size_t>(grid.dims[0]) * grid.dims[1];
-  // The two axes other than `axis` enumerate the lines.
-  const int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;
   std::vector<double> line(n);
-  for (int b = 0; b < grid.dims[w]; ++b)
-    for (int a = 0; a < grid.dims[u]; ++a) {
-      Eigen::Vector3i start(0, 0, 0);
-      start[u] = a;
-      start[w] = b;
-      const size_t base = grid.index(start[0], start[1], start[2]);
-      for (int p = 0; p < n; ++p) line[p] = data[base + p * stride];
-      for (int p = 0; p < n; ++p) {
-        double acc = 0;
-        for (int t = -radius; t <= radius; ++t) acc += kernel[t + radius] * line[std::clamp(p + t, 0, n - 1)];
-        data[base + p * stride] = static_cast<float>(acc);
-      }
+  grid.forEachLine(axis, [&](size_t base, size_t stride) {
+    for (int p = 0; p < n; ++p) line[p] = data[base + p * stride];
+    for (int p = 0; p < n; ++p) {
+      double acc = 0;
+      for (int t = -radius; t <= radius; ++t) acc += kernel[t + radius] * line[std::clamp(p + t, 0, n - 1)];
+      data[base + p * stride] = static_cast<float>(acc);
     }
+  });
 }
 
 /// Derivative per mm along voxel axis `axis` at (i, j, k): central differences, one-sided at the borders,

@@ -151,19 +151,11 @@ std::vector<double> squaredDistanceTransform(const std::vector<uint8_t>& site, c
   std::vector<int> v(maxDim);
   for (int axis = 0; axis < 3; ++axis) {
     const int n = grid.dims[axis];
-    const size_t stride = axis == 0 ? 1 : axis == 1 ? static_cast<size_t>(grid.dims[0])
-                                                    : static_cast<size_t>(grid.dims[0]) * grid.dims[1];
-    const int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;  // the other two axes enumerate the lines
-    for (int b = 0; b < grid.dims[w]; ++b)
-      for (int a = 0; a < grid.dims[u]; ++a) {
-        Eigen::Vector3i start(0, 0, 0);
-        start[u] = a;
-        start[w] = b;
-        const size_t base = grid.index(start[0], start[1], start[2]);
-        for (int p = 0; p < n; ++p) line[p] = dt[base + p * stride];
-        squaredDistance1d(line.data(), n, grid.spacing[axis], v, z, out);
-        for (int p = 0; p < n; ++p) dt[base + p * stride] = line[p];
-      }
+    grid.forEachLine(axis, [&](size_t base, size_t stride) {
+      for (int p = 0; p < n; ++p) line[p] = dt[base + p * stride];
+      squaredDistance1d(line.data(), n, grid.spacing[axis], v, z, out);
+      for (int p = 0; p < n; ++p) dt[base + p * stride] = line[p];
+    });
   }
   return dt;
 }

@@ -28,6 +28,21 @@ struct Grid {
   bool contains(int i, int j, int k) const {
     return i >= 0 && j >= 0 && k >= 0 && i < dims[0] && j < dims[1] && k < dims[2];
   }
+  /// Calls f(base, stride) once for every line of voxels along `axis` (0, 1, 2): the line's voxels have linear
+  /// indices base + p·stride for p in [0, dims[axis]). Separable filters and distance transforms run on these.
+  template <typename F>
+  void forEachLine(int axis, F&& f) const {
+    const size_t stride = axis == 0 ? 1 : axis == 1 ? static_cast<size_t>(dims[0])
+                                                    : static_cast<size_t>(dims[0]) * static_cast<size_t>(dims[1]);
+    const int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;  // the other two axes enumerate the lines
+    for (int b = 0; b < dims[w]; ++b)
+      for (int a = 0; a < dims[u]; ++a) {
+        int ijk[3] = {0, 0, 0};
+        ijk[u] = a;
+        ijk[w] = b;
+        f(index(ijk[0], ijk[1], ijk[2]), stride);
+      }
+  }
   /// 4×4 voxel→world affine (RAS mm).
   Eigen::Matrix4d voxelToWorld() const;
   /// 4×4 world→voxel affine.
