@@ -13,22 +13,12 @@
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;
+using msk::test::expectOneLineError;
+using msk::test::lineCount;
 using msk::test::runCli;
 using msk::test::ScratchDir;
 
 namespace {
-int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
-
-// A failing command: the expected exit code, exactly one line on stderr naming `file` and containing `phrase`.
-void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase) {
-  EXPECT_EQ(r.exitCode, code) << r.err;
-  EXPECT_EQ(lineCount(r.err), 1) << r.err;
-  if (!file.empty()) {
-    EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
-  }
-  EXPECT_NE(r.err.find(phrase), std::string::npos) << "wanted '" << phrase << "' in: " << r.err;
-}
-
 msk::Volume<double> smallVolume() {
   msk::Grid g;
   g.dims = {6, 5, 4};

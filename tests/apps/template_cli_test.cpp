@@ -14,23 +14,14 @@
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;
+using msk::test::expectOneLineError;
+using msk::test::lineCount;
 using msk::test::runCli;
 using msk::test::ScratchDir;
 
 namespace {
 
 const std::string kSampleLabels = MSK_SOURCE_DIR "/data-samples/thigh-seed1/labels.nii.gz";
-
-int lineCount(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
-
-void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase) {
-  EXPECT_EQ(r.exitCode, code) << r.err;
-  EXPECT_EQ(lineCount(r.err), 1) << r.err;
-  if (!file.empty()) {
-    EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
-  }
-  EXPECT_NE(r.err.find(phrase), std::string::npos) << "wanted '" << phrase << "' in: " << r.err;
-}
 
 }  // namespace
 

@@ -1,5 +1,7 @@
 #include "test_support.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -63,6 +65,17 @@ CliResult runCli(const std::vector<std::string>& args) {
   r.out = readBytes(tmp.file("out"));
   r.err = readBytes(tmp.file("err"));
   return r;
+}
+
+int lineCount(const std::string& text) { return static_cast<int>(std::count(text.begin(), text.end(), '\n')); }
+
+void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase) {
+  EXPECT_EQ(r.exitCode, code) << r.err;
+  EXPECT_EQ(lineCount(r.err), 1) << r.err;
+  if (!file.empty()) {
+    EXPECT_NE(r.err.find(file), std::string::npos) << r.err;
+  }
+  EXPECT_NE(r.err.find(phrase), std::string::npos) << "wanted '" << phrase << "' in: " << r.err;
 }
 
 void writeBytes(const std::string& path, const std::string& bytes) {

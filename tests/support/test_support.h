@@ -35,6 +35,12 @@ struct CliResult {
 /// Runs the built mskseg with arguments (each shell-quoted), capturing stdout and stderr.
 CliResult runCli(const std::vector<std::string>& args);
 
+/// Number of lines in a text.
+int lineCount(const std::string& text);
+
+/// Checks a failed CLI run: the exit code, exactly one line on stderr, naming `file` (if non-empty) and `phrase`.
+void expectOneLineError(const CliResult& r, int code, const std::string& file, const std::string& phrase);
+
 /// Writes bytes to a file (test fixtures).
 void writeBytes(const std::string& path, const std::string& bytes);
 /// Reads a whole file.
