@@ -70,3 +70,22 @@ TEST(FemurPhantom, FiveOtherSeedsIncludingObliqueAndAnisotropicGrids) {
     checkFemur(what, p.image, p.labels, p.objects[0].truth, p.objects[0].templ);
   }
 }
+
+// A template is never exactly in place: displaced by several mm and scaled by ±5 %, the femur still converges.
+TEST(FemurPhantom, DisplacedAndScaledTemplate) {
+  const std::string dir = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+  const msk::Scene scene = msk::loadScene(dir + "scene.json");
+  const msk::ImageF image = msk::readNifti<float>(dir + "image.nii.gz");
+  const msk::LabelMap labels = msk::readNifti<int32_t>(dir + "labels.nii.gz");
+  const msk::TriangleMesh truth = msk::readMesh(dir + "truth_femur.vtk");
+  const msk::TriangleMesh& base = scene.objects[0].templ;
+  const Eigen::Vector3d c = base.vertices.colwise().mean().transpose();
+  for (auto [shift, scale] : {std::pair{Eigen::Vector3d(5, -3, 4), 1.05}, std::pair{Eigen::Vector3d(-3, 3, -4), 0.95}}) {
+    msk::TriangleMesh t = base;
+    for (int i = 0; i < t.vertexCount(); ++i)
+      t.vertices.row(i) = (c + scale * (t.vertices.row(i).transpose() - c) + shift).transpose();
+    char what[96];
+    std::snprintf(what, sizeof what, "bundled, shifted %.1f mm, scale %.2f", shift.norm(), scale);
+    checkFemur(what, image, labels, truth, t);
+  }
+}
