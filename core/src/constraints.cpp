@@ -1,6 +1,8 @@
 #include "msk/core/constraints.h"
 
+#include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include <Eigen/Dense>
 
@@ -111,9 +113,11 @@ SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& refere
   }
 }
 
-void SimplexInternalConstraints::project(Points& p, const Eigen::VectorXd& w) {
+void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
   const int n = static_cast<int>(nb_.rows());
-  MSK_ASSERT(p.rows() == n && w.size() == n, "internal constraints: size mismatch");
+  MSK_ASSERT(pAll.rows() >= first_ + n && wAll.size() == pAll.rows(), "internal constraints: size mismatch");
+  auto p = pAll.middleRows(first_, n);
+  const auto w = wAll.segment(first_, n);
   skipped_ = 0;
   Eigen::VectorXd smoothH;
   if (mode_ == InternalMode::Smoothing) {
@@ -169,10 +173,13 @@ void TargetConstraints::setTargets(const Points& targets, const Eigen::VectorXd&
   weights_ = weights.cwiseMax(0.0).cwiseMin(1.0);
 }
 
-void TargetConstraints::project(Points& p, const Eigen::VectorXd& w) {
-  if (targets_.rows() == 0) return;
-  MSK_ASSERT(p.rows() == targets_.rows(), "targets: size mismatch");
-  for (int v = 0; v < p.rows(); ++v) {
+void TargetConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
+  const int n = static_cast<int>(targets_.rows());
+  if (n == 0) return;
+  MSK_ASSERT(pAll.rows() >= first_ + n, "targets: size mismatch");
+  auto p = pAll.middleRows(first_, n);
+  const auto w = wAll.segment(first_, n);
+  for (int v = 0; v < n; ++v) {
     if (weights_[v] <= 0) continue;
     Eigen::Vector3d dp;
     if (targetCorrection(p.row(v).transpose(), targets_.row(v).transpose(), w[v], gamma_ * weights_[v], dp))
@@ -227,14 +234,17 @@ void ShapeMatchingConstraint::setLambda(double lambda) {
   lambda_ = lambda;
 }
 
-void ShapeMatchingConstraint::project(Points& p, const Eigen::VectorXd& w) {
-  MSK_ASSERT(p.rows() == ref_.rows(), "global prior: size mismatch");
+void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll) {
+  const int n = static_cast<int>(ref_.rows());
+  MSK_ASSERT(pAll.rows() >= first_ + n, "global prior: size mismatch");
   if (lambda_ <= 0) return;
+  auto p = pAll.middleRows(first_, n);
+  const Eigen::VectorXd w = wAll.segment(first_, n);
   // Mass weights: fixed particles (w = 0) weigh like a very heavy particle.
   const double wmax = w.maxCoeff();
   Eigen::VectorXd mass(w.size());
   for (int i = 0; i < w.size(); ++i) mass[i] = w[i] > 0 ? 1.0 / w[i] : 1e6 / std::max(wmax, 1e-300);
-  last_ = fitTransform(ref_, p, mass, transform_);
+  last_ = fitTransform(ref_, Points(p), mass, transform_);
   const Eigen::Matrix3d m = last_.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = last_.topRightCorner<3, 1>();
   for (int i = 0; i < p.rows(); ++i) {
@@ -242,6 +252,127 @@ void ShapeMatchingConstraint::project(Points& p, const Eigen::VectorXd& w) {
     const Eigen::Vector3d goal = m * ref_.row(i).transpose() + t;
     p.row(i) += lambda_ * (goal.transpose() - p.row(i));
   }
+}
+
+}  // namespace msk
+
+// ------------------------------------------------------------------------------------------------ collisions
+
+namespace msk {
+
+bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const double bary[3],
+                         const Eigen::Vector3d& normal, double gap, double friction, double w, const double wi[3],
+                         Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]) {
+  const Eigen::Vector3d pbar = bary[0] * pi[0] + bary[1] * pi[1] + bary[2] * pi[2];
+  const Eigen::Vector3d pc = pbar - p;
+  const double pcn = pc.dot(normal);
+  if (!(pcn + gap > 0)) return false;  // at least `gap` outside: nothing to do
+  const Eigen::Vector3d tangential = pc - pcn * normal;
+  const Eigen::Vector3d target = (1.0 - friction) * tangential - gap * normal;
+  const Eigen::Vector3d delta = target - pc;  // wanted change of Pc = Σ bi Pi − P
+  const double denom = w + bary[0] * bary[0] * wi[0] + bary[1] * bary[1] * wi[1] + bary[2] * bary[2] * wi[2];
+  if (!(denom > 0) || !delta.allFinite()) return false;
+  const double mbar = 1.0 / denom;
+  dp = (-w * mbar) * delta;
+  for (int i = 0; i < 3; ++i) dpi[i] = (wi[i] * bary[i] * mbar) * delta;
+  return true;
+}
+
+CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm,
+                                           double proximityMm, double friction)
+    : firstA_(firstA), count_(vertexCount), tri_(trianglesB), gap_(gapMm), proximity_(proximityMm), friction_(friction) {
+  if (!(gapMm >= 0) || !std::isfinite(gapMm)) throw ParameterError("collision gap", std::to_string(gapMm), "must be >= 0 mm");
+  if (!(proximityMm > 0) || !std::isfinite(proximityMm))
+    throw ParameterError("collision proximity", std::to_string(proximityMm), "must be > 0 mm");
+  checkUnit("collision friction", friction);
+  first_ = firstA;
+}
+
+namespace {
+inline long long cellKey(int x, int y, int z) {
+  return (static_cast<long long>(x & 0x1fffff) << 42) | (static_cast<long long>(y & 0x1fffff) << 21) |
+         static_cast<long long>(z & 0x1fffff);
+}
+}  // namespace
+
+void CollisionConstraints::detect(const Points& p) {
+  contacts_.clear();
+  const int nt = static_cast<int>(tri_.rows());
+  if (nt == 0 || count_ == 0) return;
+  const double reach = gap_ + proximity_;
+  // Cell size: the reach or the typical triangle extent, whichever is larger, so each query scans 27 cells.
+  double extent = 0;
+  for (int t = 0; t < nt; ++t) extent += (p.row(tri_(t, 0)) - p.row(tri_(t, 1))).norm();
+  const double h = std::max(reach, extent / nt);
+  std::unordered_map<long long, std::vector<int>> grid;
+  grid.reserve(static_cast<size_t>(nt) * 2);
+  for (int t = 0; t < nt; ++t) {
+    Eigen::Vector3d lo = p.row(tri_(t, 0)).transpose(), hi = lo;
+    for (int k = 1; k < 3; ++k) {
+      lo = lo.cwiseMin(p.row(tri_(t, k)).transpose());
+      hi = hi.cwiseMax(p.row(tri_(t, k)).transpose());
+    }
+    const Eigen::Vector3i a = (lo / h).array().floor().cast<int>(), b = (hi / h).array().floor().cast<int>();
+    for (int x = a[0]; x <= b[0]; ++x)
+      for (int y = a[1]; y <= b[1]; ++y)
+        for (int z = a[2]; z <= b[2]; ++z) grid[cellKey(x, y, z)].push_back(t);
+  }
+  for (int v = 0; v < count_; ++v) {
+    const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
+    const Eigen::Vector3i c = (q / h).array().floor().cast<int>();
+    double best = reach;
+    Contact found{v, -1, {0, 0, 0}};
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          auto it = grid.find(cellKey(c[0] + dx, c[1] + dy, c[2] + dz));
+          if (it == grid.end()) continue;
+          for (int t : it->second) {
+            Eigen::Vector3d bc;
+            const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri_(t, 0)).transpose(), p.row(tri_(t, 1)).transpose(),
+                                                              p.row(tri_(t, 2)).transpose(), &bc);
+            const double d = (cp - q).norm();
+            if (d < best) {
+              best = d;
+              found.triangle = t;
+              found.bary[0] = bc[0];
+              found.bary[1] = bc[1];
+              found.bary[2] = bc[2];
+            }
+          }
+        }
+    if (found.triangle >= 0) contacts_.push_back(found);
+  }
+}
+
+void CollisionConstraints::project(Points& p, const Eigen::VectorXd& w) {
+  for (const Contact& c : contacts_) {
+    const int a = firstA_ + c.vertex;
+    const int i0 = tri_(c.triangle, 0), i1 = tri_(c.triangle, 1), i2 = tri_(c.triangle, 2);
+    const Eigen::Vector3d pi[3] = {p.row(i0).transpose(), p.row(i1).transpose(), p.row(i2).transpose()};
+    const Eigen::Vector3d nrm = (pi[1] - pi[0]).cross(pi[2] - pi[0]);
+    const double len = nrm.norm();
+    if (!(len > 0)) continue;
+    const double wi[3] = {w[i0], w[i1], w[i2]};
+    Eigen::Vector3d dp, dpi[3];
+    if (!collisionCorrection(p.row(a).transpose(), pi, c.bary, nrm / len, gap_, friction_, w[a], wi, dp, dpi)) continue;
+    p.row(a) += dp.transpose();
+    p.row(i0) += dpi[0].transpose();
+    p.row(i1) += dpi[1].transpose();
+    p.row(i2) += dpi[2].transpose();
+  }
+}
+
+double CollisionConstraints::maxPenetration(const Points& p) const {
+  double worst = 0;
+  for (const Contact& c : contacts_) {
+    const Eigen::Vector3d pi[3] = {p.row(tri_(c.triangle, 0)).transpose(), p.row(tri_(c.triangle, 1)).transpose(),
+                                   p.row(tri_(c.triangle, 2)).transpose()};
+    const Eigen::Vector3d nrm = (pi[1] - pi[0]).cross(pi[2] - pi[0]).normalized();
+    const Eigen::Vector3d pbar = c.bary[0] * pi[0] + c.bary[1] * pi[1] + c.bary[2] * pi[2];
+    worst = std::max(worst, (pbar - p.row(firstA_ + c.vertex).transpose()).dot(nrm));
+  }
+  return worst;
 }
 
 }  // namespace msk

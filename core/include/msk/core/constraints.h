@@ -3,6 +3,7 @@
 /// sets that own indices, reference parameters and stiffness. Every set projects positions (PBD, DESIGN-NOTES §2,
 /// §6); the force-based schemes consume the same sets later.
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -44,6 +45,13 @@ class ConstraintSet {
   virtual std::string name() const = 0;
   /// Projects every constraint once on positions `p` (#V×3) with inverse masses `w`.
   virtual void project(Points& p, const Eigen::VectorXd& w) = 0;
+  /// Index of the set's first particle in the solver's arrays (several objects are stacked in one system).
+  void setFirstParticle(int first) { first_ = first; }
+  /// See setFirstParticle().
+  int firstParticle() const { return first_; }
+
+ protected:
+  int first_ = 0;
 };
 
 /// How the 2-simplex internal constraint chooses its target.
@@ -88,6 +96,44 @@ class TargetConstraints : public ConstraintSet {
   double gamma_;
   Points targets_;
   Eigen::VectorXd weights_;
+};
+
+/// Collision position correction, spring target (thesis seed Table 4.23, DESIGN-NOTES §3): vertex P against the point
+/// P̄ = Σ bi Pi of a partner's triangle with outward normal n. With Pc = P̄ − P, the normal part is corrected to −g
+/// (P at least `gap` mm outside) and the tangential part scaled by (1 − μ); the correction of Pc is shared with the
+/// reduced mass m̄ = (w + Σ bi² wi)⁻¹ so linear momentum is conserved. Returns false when nothing is violated
+/// (Pc·n + g ≤ 0) or every particle is fixed.
+bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const double bary[3],
+                         const Eigen::Vector3d& normal, double gap, double friction, double w, const double wi[3],
+                         Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]);
+
+/// Vertex–surface collisions of object A's vertices against object B's triangles (one direction; declare the
+/// reverse set too). Contacts are detected once per step (detect()) with a uniform grid over B's triangles, then
+/// projected with the current positions.
+class CollisionConstraints : public ConstraintSet {
+ public:
+  /// `vertexCount` vertices of A start at particle `firstA`; `triangles` index B's particles (global indices).
+  /// gap ≥ 0 and proximity > 0 in mm, friction μ ∈ [0, 1] (ParameterError otherwise).
+  CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm, double proximityMm,
+                       double friction);
+  std::string name() const override { return "collision"; }
+  /// Finds, for every vertex of A, the closest point of B within gap + proximity (or B's inside) at positions `p`.
+  void detect(const Points& p);
+  void project(Points& p, const Eigen::VectorXd& w) override;
+  /// Contacts found by the last detect().
+  int contacts() const { return static_cast<int>(contacts_.size()); }
+  /// Largest penetration (mm, ≥ 0) among the contacts at positions `p`: how far a vertex of A is inside B.
+  double maxPenetration(const Points& p) const;
+
+ private:
+  struct Contact {
+    int vertex, triangle;
+    double bary[3];
+  };
+  int firstA_, count_;
+  Triangles tri_;
+  double gap_, proximity_, friction_;
+  std::vector<Contact> contacts_;
 };
 
 /// Kind of transform a global shape prior fits.
