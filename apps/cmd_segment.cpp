@@ -42,7 +42,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "                      [--prior-end L] [--mesh-space lps|ras] [advanced options below]\n"
            "                      [--no-qc]\n\n"
            "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
-           "its shape memory and a global shape prior. Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
+           "its shape memory and a global shape prior; objects evolve together (collision response between the\n"
+           "scene's pairs is not applied yet: overlaps are counted in report.json). Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
            "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 2 levels x 25 steps, balanced = 2 x 50,\n"
@@ -117,6 +118,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     for (const auto& kv : res.secondsPerStage) timing[kv.first + "_s"] = kv.second;
     timing["image_scales_built"] = res.featureScalesBuilt;
     report["timing"] = timing;
+    report["overlap_voxels"] = static_cast<double>(res.overlapVoxels);
     Json objects = Json::array();
     std::vector<QcObject> qc;
     for (const auto& o : res.objects) {
@@ -167,6 +169,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
     report.writeFile(dir + "/report.json");
   });
   std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << "\n";
+  if (scene.objects.size() > 1)
+    std::cout << "  voxels inside two objects: " << res.overlapVoxels << " (collision response not applied yet)\n";
   for (const auto& o : res.objects) {
     int steps = 0;
     for (const auto& l : o.levels) steps += l.steps;

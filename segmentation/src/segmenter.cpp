@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <tuple>
 
 #include "msk/core/error.h"
@@ -137,126 +138,88 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
 
 namespace {
 
-ObjectResult segmentObject(const SceneObject& obj, const SegmentOptions& opts, const ResolvedSettings& rs,
-                           FeatureCache& features, const Grid& grid, const ProgressFn& progress, double progressBase,
-                           double progressSpan) {
-  const auto t0 = Clock::now();
+/// One object's evolving state across levels.
+struct ObjectState {
+  const SceneObject* obj = nullptr;
   ObjectResult out;
-  out.name = obj.name;
-  out.label = obj.label;
-  out.templateVolumeMm3 = enclosedVolume(obj.templ);
-
-  // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
-  std::vector<LevelMeshes> lv(static_cast<size_t>(rs.levels));
-  lv[0].triangles = obj.templ;
-  for (int l = 1; l < rs.levels; ++l) {
-    const int target = std::max(150, lv[l - 1].triangles.vertexCount() / 4);
-    lv[l].triangles = target < lv[l - 1].triangles.vertexCount() ? decimateMesh(lv[l - 1].triangles, target)
-                                                                 : lv[l - 1].triangles;
-  }
-  for (auto& l : lv) l.simplex = simplexFromTriangles(l.triangles);
-
+  std::vector<LevelMeshes> lv;  ///< index 0 finest
   TargetSearchOptions search;
-  search.mode = obj.hasForce ? obj.force : TargetMode::Gradient;
-  search.distancePenalty = opts.edgePenalty;
-
-  // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
-  const int coarsest = rs.levels - 1;
-  Polarity polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
-  if (polarity == Polarity::Auto) {
-    const ImageFeatures& f = features.at(rs.sigmaMm[0]);
-    polarity = estimatePolarity(f, lv[0].simplex.positions, simplexVertexNormals(lv[0].simplex));
-  }
-  out.polarity = polarity;
-
-  const int totalSteps = rs.levels * rs.maxStepsPerLevel;
-  int stepsDone = 0;
-  SimplexMesh current = lv[coarsest].simplex;
-  double searchSeconds = 0;
+  Polarity polarity = Polarity::Auto;
+  SimplexMesh current;
   Eigen::VectorXd residual;
-  for (int l = coarsest; l >= 0; --l) {
-    const int order = coarsest - l;  // 0 for the coarsest level
-    const LevelMeshes& ref = lv[l];
-    if (l != coarsest) {
-      // Carry the displacement of the coarser level's surface over to this level's template.
-      const LevelMeshes& coarse = lv[l + 1];
-      const TriangleMesh moved = trianglesFromSimplex(current);
-      const Eigen::MatrixXd disp = moved.vertices - coarse.triangles.vertices;
-      SurfaceTransfer transfer(coarse.triangles, ref.triangles.vertices);
-      TriangleMesh start = ref.triangles;
-      start.vertices += transfer.apply(disp);
-      current = simplexFromTriangles(start);
-    }
-    const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
-    search.rangeMm = rs.rangeMm[order];
-    LearnedProfiles profiles;
-    if (search.mode == TargetMode::Profile)
-      profiles = learnProfiles(feat, ref.simplex.positions, simplexVertexNormals(ref.simplex), search, grid);
+  double searchSeconds = 0;
+  int first = 0;  ///< first particle in the stacked system at the current level
+  // Per-level constraint sets.
+  std::unique_ptr<SimplexInternalConstraints> internal;
+  std::unique_ptr<TargetConstraints> targets;
+  std::unique_ptr<ShapeMatchingConstraint> prior;
+  LearnedProfiles profiles;
+};
 
-    SimplexInternalConstraints internal(ref.simplex, opts.internalStiffness, opts.internalMode);
-    TargetConstraints targets(opts.imageStiffness);
-    ShapeMatchingConstraint prior(ref.simplex.positions, opts.priorTransform, opts.priorStart);
-    PbdSolver solver(opts.pbd);
-    const Eigen::VectorXd invMass = Eigen::VectorXd::Ones(current.vertexCount());
-    solver.prepare(current.positions, invMass);
-    std::vector<ConstraintSet*> sets = {&targets, &internal, &prior};
-
-    LevelReport rep;
-    rep.vertices = current.vertexCount();
-    rep.sigmaMm = rs.sigmaMm[order];
-    rep.rangeMm = search.rangeMm;
-    for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
-      const double runFraction = static_cast<double>(stepsDone) / std::max(1, totalSteps - 1);
-      prior.setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
-      current.positions = solver.positions();
-      const auto ts = Clock::now();
-      const Points normals = simplexVertexNormals(current);
-      const TargetSearchResult found = searchTargets(feat, current.positions, normals, current.neighbors, search,
-                                                     polarity, grid, search.mode == TargetMode::Profile ? &profiles : nullptr);
-      searchSeconds += since(ts);
-      Eigen::VectorXd weights = scoreWeights(found.scores);
-      if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less
-        for (int i = 0; i < weights.size(); ++i)
-          weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
-      targets.setTargets(found.targets, weights);
-      residual = found.residual;
-      rep.lastMaxMoveMm = solver.step(sets);
-      ++rep.steps;
-      ++stepsDone;
-      if (progress)
-        progress(progressBase + progressSpan * std::min(1.0, static_cast<double>(stepsDone) / totalSteps),
-                 obj.name + " level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels));
-      if (rep.lastMaxMoveMm < rs.toleranceMm) {
-        rep.converged = true;
-        break;
-      }
-    }
-    stepsDone = (order + 1) * rs.maxStepsPerLevel;
-    current.positions = solver.positions();
-    // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
-    const double refDiag = (ref.simplex.positions.colwise().maxCoeff() - ref.simplex.positions.colwise().minCoeff()).norm();
-    const double curDiag = (current.positions.colwise().maxCoeff() - current.positions.colwise().minCoeff()).norm();
-    if (!(curDiag < 5.0 * refDiag && curDiag > 0.2 * refDiag))
-      throw Error(obj.name + ": evolution diverged at level " + std::to_string(order + 1) + " (size ×" +
-                  std::to_string(curDiag / refDiag) + " of the template); lower the stiffness or check the image");
-    for (const auto& kv : solver.secondsPerFamily()) out.secondsPerFamily[kv.first] += kv.second;
-    out.levels.push_back(rep);
+/// Builds the resolution levels, polarity and search settings of one object.
+void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features) {
+  const SceneObject& obj = *st.obj;
+  st.out.name = obj.name;
+  st.out.label = obj.label;
+  st.out.templateVolumeMm3 = enclosedVolume(obj.templ);
+  // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
+  st.lv.resize(static_cast<size_t>(rs.levels));
+  st.lv[0].triangles = obj.templ;
+  for (int l = 1; l < rs.levels; ++l) {
+    const int target = std::max(150, st.lv[l - 1].triangles.vertexCount() / 4);
+    st.lv[l].triangles = target < st.lv[l - 1].triangles.vertexCount() ? decimateMesh(st.lv[l - 1].triangles, target)
+                                                                       : st.lv[l - 1].triangles;
   }
-  out.secondsPerFamily["image-search"] += searchSeconds;
+  for (auto& l : st.lv) l.simplex = simplexFromTriangles(l.triangles);
+  st.search.mode = obj.hasForce ? obj.force : TargetMode::Gradient;
+  st.search.distancePenalty = opts.edgePenalty;
+  // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
+  st.polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
+  if (st.polarity == Polarity::Auto)
+    st.polarity = estimatePolarity(features.at(rs.sigmaMm[0]), st.lv[0].simplex.positions,
+                                   simplexVertexNormals(st.lv[0].simplex));
+  st.out.polarity = st.polarity;
+  st.current = st.lv[static_cast<size_t>(rs.levels - 1)].simplex;
+}
 
-  // Final surface on the template's own triangulation, with per-vertex displacement and image residual.
-  current.pointData.clear();
-  current.pointData["image_residual_mm"] = residual.size() == current.vertexCount()
-                                               ? residual
-                                               : Eigen::VectorXd::Zero(current.vertexCount());
-  out.mesh = trianglesFromSimplex(current);
-  out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - obj.templ.vertices).rowwise().norm();
+/// Moves an object to level `l` (carrying the coarser level's displacement) and builds its constraint sets.
+void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts, const ImageFeatures& feat,
+                const Grid& grid) {
+  const LevelMeshes& ref = st.lv[static_cast<size_t>(l)];
+  if (l != coarsest) {
+    // Carry the displacement of the coarser level's surface over to this level's template.
+    const LevelMeshes& coarse = st.lv[static_cast<size_t>(l + 1)];
+    const TriangleMesh moved = trianglesFromSimplex(st.current);
+    const Eigen::MatrixXd disp = moved.vertices - coarse.triangles.vertices;
+    SurfaceTransfer transfer(coarse.triangles, ref.triangles.vertices);
+    TriangleMesh start = ref.triangles;
+    start.vertices += transfer.apply(disp);
+    st.current = simplexFromTriangles(start);
+  }
+  if (st.search.mode == TargetMode::Profile)
+    st.profiles = learnProfiles(feat, ref.simplex.positions, simplexVertexNormals(ref.simplex), st.search, grid);
+  st.internal = std::make_unique<SimplexInternalConstraints>(ref.simplex, opts.internalStiffness, opts.internalMode);
+  st.targets = std::make_unique<TargetConstraints>(opts.imageStiffness);
+  st.prior = std::make_unique<ShapeMatchingConstraint>(ref.simplex.positions, opts.priorTransform, opts.priorStart);
+  for (ConstraintSet* c : {static_cast<ConstraintSet*>(st.internal.get()), static_cast<ConstraintSet*>(st.targets.get()),
+                           static_cast<ConstraintSet*>(st.prior.get())})
+    c->setFirstParticle(st.first);
+}
+
+/// Final surface on the template's own triangulation, with per-vertex displacement and image residual.
+void finishObject(ObjectState& st) {
+  st.current.pointData.clear();
+  st.current.pointData["image_residual_mm"] = st.residual.size() == st.current.vertexCount()
+                                                  ? st.residual
+                                                  : Eigen::VectorXd::Zero(st.current.vertexCount());
+  ObjectResult& out = st.out;
+  out.mesh = trianglesFromSimplex(st.current);
+  out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - st.obj->templ.vertices).rowwise().norm();
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);
-  out.seconds = since(t0);
+  out.secondsPerFamily["image-search"] += st.searchSeconds;
   const std::string problem = closedMeshProblem(out.mesh);
-  if (!problem.empty()) throw Error(obj.name + ": the evolved surface is invalid: " + problem);
-  return out;
+  if (!problem.empty()) throw Error(st.obj->name + ": the evolved surface is invalid: " + problem);
 }
 
 }  // namespace
@@ -287,22 +250,111 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
 
   SegmentationResult res;
   res.settings = resolveSettings(opts, image.grid);
+  const ResolvedSettings& rs = res.settings;
   FeatureCache features(image);
-  const double span = 1.0 / static_cast<double>(scene.objects.size());
   const auto te = Clock::now();
-  for (size_t i = 0; i < scene.objects.size(); ++i)
-    res.objects.push_back(segmentObject(scene.objects[i], opts, res.settings, features, image.grid, progress,
-                                        span * static_cast<double>(i), span));
+  std::vector<ObjectState> objs(scene.objects.size());
+  for (size_t i = 0; i < objs.size(); ++i) {
+    objs[i].obj = &scene.objects[i];
+    prepareObject(objs[i], opts, rs, features);
+  }
+  // All objects evolve together, level by level, stacked in one particle system (the ground for collision
+  // corrections between declared pairs, which must move both partners and conserve momentum).
+  const int coarsest = rs.levels - 1;
+  const int totalSteps = rs.levels * rs.maxStepsPerLevel;
+  int stepsDone = 0;
+  for (int l = coarsest; l >= 0; --l) {
+    const int order = coarsest - l;  // 0 for the coarsest level
+    const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
+    int n = 0;
+    for (auto& st : objs) {
+      st.first = n;
+      st.search.rangeMm = rs.rangeMm[order];
+      enterLevel(st, l, coarsest, opts, feat, image.grid);
+      n += st.current.vertexCount();
+    }
+    Points x(n, 3);
+    for (const auto& st : objs) x.middleRows(st.first, st.current.vertexCount()) = st.current.positions;
+    std::vector<ConstraintSet*> sets;
+    for (auto& st : objs) {
+      sets.push_back(st.targets.get());
+      sets.push_back(st.internal.get());
+      sets.push_back(st.prior.get());
+    }
+    PbdSolver solver(opts.pbd);
+    solver.prepare(x, Eigen::VectorXd::Ones(n));
+    LevelReport rep;
+    rep.sigmaMm = rs.sigmaMm[order];
+    rep.rangeMm = rs.rangeMm[order];
+    for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
+      const double runFraction = static_cast<double>(stepsDone) / std::max(1, totalSteps - 1);
+      for (auto& st : objs) {
+        st.prior->setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
+        st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
+        const auto ts = Clock::now();
+        const Points normals = simplexVertexNormals(st.current);
+        const TargetSearchResult found =
+            searchTargets(feat, st.current.positions, normals, st.current.neighbors, st.search, st.polarity, image.grid,
+                          st.search.mode == TargetMode::Profile ? &st.profiles : nullptr);
+        st.searchSeconds += since(ts);
+        Eigen::VectorXd weights = scoreWeights(found.scores);
+        if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less
+          for (int i = 0; i < weights.size(); ++i) weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
+        st.targets->setTargets(found.targets, weights);
+        st.residual = found.residual;
+      }
+      rep.lastMaxMoveMm = solver.step(sets);
+      ++rep.steps;
+      ++stepsDone;
+      if (progress)
+        progress(std::min(1.0, static_cast<double>(stepsDone) / totalSteps),
+                 "level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels));
+      if (rep.lastMaxMoveMm < rs.toleranceMm) {
+        rep.converged = true;
+        break;
+      }
+    }
+    stepsDone = (order + 1) * rs.maxStepsPerLevel;
+    for (auto& st : objs) {
+      st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
+      // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
+      const Points& refP = st.lv[static_cast<size_t>(l)].simplex.positions;
+      const double refDiag = (refP.colwise().maxCoeff() - refP.colwise().minCoeff()).norm();
+      const double curDiag = (st.current.positions.colwise().maxCoeff() - st.current.positions.colwise().minCoeff()).norm();
+      if (!(curDiag < 5.0 * refDiag && curDiag > 0.2 * refDiag))
+        throw Error(st.obj->name + ": evolution diverged at level " + std::to_string(order + 1) + " (size ×" +
+                    std::to_string(curDiag / refDiag) + " of the template); lower the stiffness or check the image");
+      for (const auto& kv : solver.secondsPerFamily()) st.out.secondsPerFamily[kv.first] += kv.second;
+      LevelReport r = rep;
+      r.vertices = st.current.vertexCount();
+      st.out.levels.push_back(r);
+    }
+  }
+  for (auto& st : objs) {
+    finishObject(st);
+    st.out.seconds = since(te) / static_cast<double>(objs.size());
+    res.objects.push_back(std::move(st.out));
+  }
   res.secondsPerStage["evolution"] = since(te) - features.seconds();
   res.secondsPerStage["features"] = features.seconds();
   res.featureScalesBuilt = features.built();
 
   const auto tr = Clock::now();
-  // Overlaps (until collision response resolves them) go to bones: muscles and generic objects are written first.
+  // Voxels claimed by more than one object are counted; in the label map they go to bones (muscles and generic
+  // objects are written first).
   res.labels = LabelMap(image.grid, 0);
+  std::vector<uint8_t> claims(image.grid.voxelCount(), 0);
   for (ObjectKind pass : {ObjectKind::Generic, ObjectKind::Muscle, ObjectKind::Bone})
-    for (size_t i = 0; i < res.objects.size(); ++i)
-      if (scene.objects[i].kind == pass) rasterizeInto(res.labels, res.objects[i].mesh, res.objects[i].label);
+    for (size_t i = 0; i < res.objects.size(); ++i) {
+      if (scene.objects[i].kind != pass) continue;
+      const LabelMap one = rasterize(res.objects[i].mesh, image.grid);
+      for (size_t v = 0; v < one.data.size(); ++v)
+        if (one.data[v]) {
+          claims[v] = static_cast<uint8_t>(std::min(255, claims[v] + 1));
+          res.labels.data[v] = res.objects[i].label;
+        }
+    }
+  for (uint8_t c : claims) res.overlapVoxels += c > 1;
   res.secondsPerStage["rasterise"] = since(tr);
   res.seconds = since(t0);
   if (progress) progress(1.0, "done");

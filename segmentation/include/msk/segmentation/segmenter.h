@@ -67,7 +67,7 @@ struct ObjectResult {
   TriangleMesh mesh;  ///< final surface, RAS mm; point data "displacement_mm" and "image_residual_mm"
   Polarity polarity = Polarity::Auto;  ///< the polarity used (estimated if auto)
   std::vector<LevelReport> levels;     ///< coarse first
-  double seconds = 0;
+  double seconds = 0;                  ///< evolution time, shared equally among the objects evolved together
   double volumeMm3 = 0, templateVolumeMm3 = 0;
   double meanImageResidualMm = 0;      ///< mean |target offset| at the end
   std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
@@ -81,6 +81,7 @@ struct SegmentationResult {
   double seconds = 0;            ///< whole run
   std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
   int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
+  size_t overlapVoxels = 0;      ///< voxels inside more than one object's surface
 };
 
 /// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).
