@@ -16,15 +16,6 @@ namespace fs = std::filesystem;
 namespace msk::cli {
 namespace {
 
-const char* polarityName(Polarity p) {
-  switch (p) {
-    case Polarity::Auto: return "auto";
-    case Polarity::DarkInside: return "dark-inside";
-    case Polarity::BrightInside: return "bright-inside";
-  }
-  return "?";
-}
-
 Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]}); }
 
 }  // namespace
@@ -78,11 +69,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.edgePenalty = args.num("edge-penalty", opts.edgePenalty);
   opts.farTargetScaleMm = args.num("far-target", opts.farTargetScaleMm);
   if (!(opts.farTargetScaleMm >= 0)) throw ParameterError("--far-target", args.str("far-target"), "must be >= 0 mm");
-  const std::string prior = args.str("prior", "similarity");
-  if (prior == "rigid") opts.priorTransform = PriorTransform::Rigid;
-  else if (prior == "similarity") opts.priorTransform = PriorTransform::Similarity;
-  else if (prior == "affine") opts.priorTransform = PriorTransform::Affine;
-  else throw ParameterError("--prior", prior, "must be rigid, similarity or affine");
+  opts.priorTransform = parsePriorTransform(args.str("prior", "similarity"), "--prior");
   const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));
   for (auto [name, v] : {std::pair{"--internal-stiffness", opts.internalStiffness},
                          std::pair{"--image-stiffness", opts.imageStiffness},

@@ -81,6 +81,31 @@ const char* qualityName(Quality q) {
   return "?";
 }
 
+PriorTransform parsePriorTransform(const std::string& t, const std::string& option) {
+  if (t == "rigid") return PriorTransform::Rigid;
+  if (t == "similarity") return PriorTransform::Similarity;
+  if (t == "affine") return PriorTransform::Affine;
+  throw ParameterError(option, t, "must be rigid, similarity or affine");
+}
+
+const char* priorTransformName(PriorTransform t) {
+  switch (t) {
+    case PriorTransform::Rigid: return "rigid";
+    case PriorTransform::Similarity: return "similarity";
+    case PriorTransform::Affine: return "affine";
+  }
+  return "?";
+}
+
+const char* polarityName(Polarity p) {
+  switch (p) {
+    case Polarity::Auto: return "auto";
+    case Polarity::DarkInside: return "dark-inside";
+    case Polarity::BrightInside: return "bright-inside";
+  }
+  return "?";
+}
+
 ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   ResolvedSettings s;
   const double minSp = grid.spacing.minCoeff(), maxSp = grid.spacing.maxCoeff();
@@ -118,9 +143,7 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["internal_stiffness"] = o.internalStiffness;
   j["internal_mode"] = o.internalMode == InternalMode::ShapeMemory ? "shape-memory" : "smoothing";
   j["image_stiffness"] = o.imageStiffness;
-  j["global_prior"] = o.priorTransform == PriorTransform::Rigid        ? "rigid"
-                      : o.priorTransform == PriorTransform::Similarity ? "similarity"
-                                                                       : "affine";
+  j["global_prior"] = priorTransformName(o.priorTransform);
   j["global_prior_weight_start"] = o.priorStart;
   j["global_prior_weight_end"] = o.priorEnd;
   j["far_target_scale_mm"] = o.farTargetScaleMm;

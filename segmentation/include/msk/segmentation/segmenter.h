@@ -21,6 +21,12 @@ enum class Quality { Fast, Balanced, Accurate };
 Quality parseQuality(const std::string& text);
 /// Name of a preset.
 const char* qualityName(Quality q);
+/// Parses "rigid" | "similarity" | "affine"; throws ParameterError (naming `option`) otherwise.
+PriorTransform parsePriorTransform(const std::string& text, const std::string& option = "prior");
+/// Name of a prior transform.
+const char* priorTransformName(PriorTransform t);
+/// Name of a polarity ("auto", "dark-inside", "bright-inside").
+const char* polarityName(Polarity p);
 
 /// Settings of one run. Values ≤ 0 in the "0 = preset" fields take the preset's value.
 struct SegmentOptions {
