@@ -412,6 +412,19 @@ Points simplexVertexNormals(const SimplexMesh& s) {
   return nrm;
 }
 
+Triangles simplexFanTriangles(const SimplexMesh& s) {
+  const FaceTable ft = facesOf(s, "simplexFanTriangles");
+  int count = 0;
+  for (size_t f = 0; f + 1 < ft.offsets.size(); ++f) count += ft.offsets[f + 1] - ft.offsets[f] - 2;
+  Triangles tri(count, 3);
+  int r = 0;
+  for (size_t f = 0; f + 1 < ft.offsets.size(); ++f) {
+    const int b = ft.offsets[f], e = ft.offsets[f + 1];
+    for (int i = b + 1; i + 1 < e; ++i) tri.row(r++) << ft.vertices[b], ft.vertices[i], ft.vertices[i + 1];
+  }
+  return tri;
+}
+
 double simplexVolume(const SimplexMesh& s) {
   const FaceTable ft = facesOf(s, "simplexVolume");
   double vol = 0;

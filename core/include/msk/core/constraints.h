@@ -3,6 +3,7 @@
 /// sets that own indices, reference parameters and stiffness. Every set projects positions (PBD, DESIGN-NOTES §2,
 /// §6); the force-based schemes consume the same sets later.
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
@@ -108,8 +109,9 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
                          Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]);
 
 /// Vertex–surface collisions of object A's vertices against object B's triangles (one direction; declare the
-/// reverse set too). Contacts are detected once per step (detect()) with a uniform grid over B's triangles, then
-/// projected with the current positions.
+/// reverse set too). Contacts are detected once per step (detect()) with a uniform grid over B's triangles: the
+/// closest point of B within gap + proximity, and the contact normal along the direction from that point to the
+/// vertex, signed (see detect()). Projection then uses the current positions and that normal.
 class CollisionConstraints : public ConstraintSet {
  public:
   /// `vertexCount` vertices of A start at particle `firstA`; `triangles` index B's particles (global indices).
@@ -117,8 +119,11 @@ class CollisionConstraints : public ConstraintSet {
   CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm, double proximityMm,
                        double friction);
   std::string name() const override { return "collision"; }
-  /// Finds, for every vertex of A, the closest point of B within gap + proximity (or B's inside) at positions `p`.
-  void detect(const Points& p);
+  /// Finds, for every vertex of A, the closest point of B within gap + proximity at positions `p`. With `insideTest`
+  /// the side comes from B's pseudonormal (confirmed by its smooth normal); without it every vertex is taken to be
+  /// outside B, which is exact when the positions are collision-free and keeps folded or stretched partner surfaces
+  /// from pushing a vertex through (use the test where overlaps may already exist: first step of a level, reports).
+  void detect(const Points& p, bool insideTest = true);
   void project(Points& p, const Eigen::VectorXd& w) override;
   /// Contacts found by the last detect().
   int contacts() const { return static_cast<int>(contacts_.size()); }
@@ -129,9 +134,22 @@ class CollisionConstraints : public ConstraintSet {
   struct Contact {
     int vertex, triangle;
     double bary[3];
+    Eigen::Vector3d normal;  ///< B's outward normal at the closest point (interpolated vertex normals), fixed per step
+  };
+  static long long edgeKey(int a, int b) {
+    return a < b ? (static_cast<long long>(a) << 32) | static_cast<unsigned>(b)
+                 : (static_cast<long long>(b) << 32) | static_cast<unsigned>(a);
+  }
+  struct EdgePair {
+    int f[2] = {-1, -1};
+    int& operator[](int i) { return f[i]; }
+    int operator[](int i) const { return f[i]; }
   };
   int firstA_, count_;
   Triangles tri_;
+  int idxLo_ = 0, idxHi_ = -1;  ///< range of B's particle indices
+  std::vector<int> vtStart_, vtTri_;  ///< B's vertex → incident triangles (CSR, vertex i at i − idxLo_)
+  std::unordered_map<long long, EdgePair> edgeFaces_;
   double gap_, proximity_, friction_;
   std::vector<Contact> contacts_;
 };

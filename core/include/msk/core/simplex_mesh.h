@@ -68,6 +68,10 @@ SimplexGeometry simplexGeometry(const SimplexMesh& mesh);
 /// Area-weighted outward vertex normals of a 2-simplex mesh's surface (smoother than the neighbour-plane normal).
 Points simplexVertexNormals(const SimplexMesh& mesh);
 
+/// The faces of a 2-simplex mesh split into triangles fanned from each face's first vertex (outward, indices are
+/// simplex vertices): a triangulated surface whose corners are the particles themselves (used for collisions).
+Triangles simplexFanTriangles(const SimplexMesh& mesh);
+
 /// Enclosed volume of a 2-simplex mesh (polygon faces fanned around their centroid), mm³.
 double simplexVolume(const SimplexMesh& mesh);
 
