@@ -23,24 +23,29 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space"},
-            {"help", "no-qc"});
+             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space",
+             "collision-gap", "collision-proximity", "friction"},
+            {"help", "no-qc", "no-collisions"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
            "                      [--levels N] [--steps N] [--tolerance MM] [--internal-stiffness G]\n"
            "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--prior-start L]\n"
            "                      [--prior-end L] [--mesh-space lps|ras] [advanced options below]\n"
-           "                      [--no-qc]\n\n"
+           "                      [--no-collisions] [--collision-gap MM] [--friction MU] [--no-qc]\n\n"
            "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
-           "its shape memory and a global shape prior; objects evolve together (collision response between the\n"
-           "scene's pairs is not applied yet: overlaps are counted in report.json). Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
+           "its shape memory and a global shape prior; objects evolve together, and the scene's collision pairs\n"
+           "keep their surfaces apart (vertex-surface contacts, position correction shared with reduced masses).\n"
+           "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
            "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 2 levels x 25 steps, balanced = 2 x 50,\n"
            "              accurate = 3 x 100; --levels/--steps/--tolerance override it\n"
            "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 1, 0.25)\n"
            "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.1)\n"
+           "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
+           "  --collision-gap MM, --collision-proximity MM, --friction MU   contact gap, search reach beyond the\n"
+           "                    gap and friction (defaults 0.2 mm, max(1 mm, half the largest spacing), 0)\n"
            "advanced (relative to the voxel size, so they hold at any resolution):\n"
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
@@ -69,6 +74,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.edgePenalty = args.num("edge-penalty", opts.edgePenalty);
   opts.farTargetScaleMm = args.num("far-target", opts.farTargetScaleMm);
   if (!(opts.farTargetScaleMm >= 0)) throw ParameterError("--far-target", args.str("far-target"), "must be >= 0 mm");
+  opts.collisions = !args.has("no-collisions");
+  opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
+  opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
+  opts.collisionFriction = args.num("friction", opts.collisionFriction);
+  if (!(opts.collisionGapMm >= 0 && opts.collisionGapMm <= 10))
+    throw ParameterError("--collision-gap", args.str("collision-gap"), "must be in [0, 10] mm");
+  if (!(opts.collisionProximityMm >= 0 && opts.collisionProximityMm <= 50))
+    throw ParameterError("--collision-proximity", args.str("collision-proximity"), "must be in [0, 50] mm");
+  if (!(opts.collisionFriction >= 0 && opts.collisionFriction <= 1))
+    throw ParameterError("--friction", args.str("friction"), "must be in [0, 1]");
   opts.priorTransform = parsePriorTransform(args.str("prior", "similarity"), "--prior");
   const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));
   for (auto [name, v] : {std::pair{"--internal-stiffness", opts.internalStiffness},
@@ -106,6 +121,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
     timing["image_scales_built"] = res.featureScalesBuilt;
     report["timing"] = timing;
     report["overlap_voxels"] = static_cast<double>(res.overlapVoxels);
+    report["collision_sets_built"] = res.collisionSetsBuilt;
+    Json pairs = Json::array();
+    for (size_t k = 0; k < scene.collisions.size(); ++k) {
+      Json pj;
+      pj["objects"] = Json(Json::Array{scene.objects[static_cast<size_t>(scene.collisions[k].first)].name,
+                                       scene.objects[static_cast<size_t>(scene.collisions[k].second)].name});
+      if (k < res.pairPenetrationMm.size()) pj["max_penetration_mm"] = res.pairPenetrationMm[k];
+      pairs.push(pj);
+    }
+    report["collision_pairs"] = pairs;
     Json objects = Json::array();
     std::vector<QcObject> qc;
     for (const auto& o : res.objects) {
@@ -157,7 +182,13 @@ int cmdSegment(const std::vector<std::string>& argv) {
   });
   std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << "\n";
   if (scene.objects.size() > 1)
-    std::cout << "  voxels inside two objects: " << res.overlapVoxels << " (collision response not applied yet)\n";
+    std::cout << "  voxels inside two objects: " << res.overlapVoxels
+              << (res.collisionSetsBuilt > 0 ? "" : " (no collision response: no pairs declared or --no-collisions)") << "\n";
+  if (!res.pairPenetrationMm.empty()) {
+    double worst = 0;
+    for (double d : res.pairPenetrationMm) worst = std::max(worst, d);
+    std::cout << "  deepest penetration between collision partners: " << worst << " mm\n";
+  }
   for (const auto& o : res.objects) {
     int steps = 0;
     for (const auto& l : o.levels) steps += l.steps;

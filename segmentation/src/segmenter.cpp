@@ -152,6 +152,13 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["range_fine_voxels"] = o.rangeFine;
   j["range_coarse_voxels"] = o.rangeCoarse;
   j["edge_penalty_per_mm"] = o.edgePenalty;
+  j["collisions"] = o.collisions;
+  j["collision_gap_mm"] = o.collisionGapMm;
+  j["collision_proximity_mm"] = o.collisionProximityMm;
+  j["collision_friction"] = o.collisionFriction;
+  j["collision_mode"] = "position, spring target, sequential";
+  j["collision_final_sweeps"] = o.collisionFinalSweeps;
+  j["bone_mass_ratio"] = o.boneMassRatio;
   j["pbd_dt"] = o.pbd.dt;
   j["pbd_iterations"] = o.pbd.iterations;
   j["pbd_damping"] = o.pbd.damping;
@@ -254,6 +261,15 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   checkUnit("image stiffness", opts.imageStiffness);
   checkUnit("global prior start", opts.priorStart);
   checkUnit("global prior end", opts.priorEnd);
+  checkUnit("collision friction", opts.collisionFriction);
+  if (!(opts.collisionGapMm >= 0 && opts.collisionGapMm <= 10))
+    throw ParameterError("collision gap", std::to_string(opts.collisionGapMm), "must be in [0, 10] mm");
+  if (!(opts.collisionProximityMm >= 0 && opts.collisionProximityMm <= 50))
+    throw ParameterError("collision proximity", std::to_string(opts.collisionProximityMm), "must be in [0, 50] mm (0 = auto)");
+  if (!(opts.boneMassRatio >= 1e-3 && opts.boneMassRatio <= 1e3))
+    throw ParameterError("bone mass ratio", std::to_string(opts.boneMassRatio), "must be in [0.001, 1000]");
+  if (opts.collisionFinalSweeps < 0 || opts.collisionFinalSweeps > 1000)
+    throw ParameterError("collision sweeps", std::to_string(opts.collisionFinalSweeps), "must be 0..1000");
   if (opts.levels < 0 || opts.levels > 5) throw ParameterError("levels", std::to_string(opts.levels), "must be 0..5");
   if (opts.maxStepsPerLevel < 0 || opts.maxStepsPerLevel > 100000)
     throw ParameterError("max steps", std::to_string(opts.maxStepsPerLevel), "must be 0..100000");
@@ -284,6 +300,9 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   // All objects evolve together, level by level, stacked in one particle system (the ground for collision
   // corrections between declared pairs, which must move both partners and conserve momentum).
   const int coarsest = rs.levels - 1;
+  const double proximity =
+      opts.collisionProximityMm > 0 ? opts.collisionProximityMm : std::max(1.0, 0.5 * image.grid.spacing.maxCoeff());
+  double collisionDetectSeconds = 0;
   const int totalSteps = rs.levels * rs.maxStepsPerLevel;
   int stepsDone = 0;
   for (int l = coarsest; l >= 0; --l) {
@@ -304,8 +323,34 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       sets.push_back(st.internal.get());
       sets.push_back(st.prior.get());
     }
+    // Bones are heavier, so a contact moves the muscle more than the bone (masses only matter for shared corrections:
+    // image targets and shape memory do not depend on a uniform mass scale).
+    Eigen::VectorXd invMass = Eigen::VectorXd::Ones(n);
+    for (const auto& st : objs)
+      if (st.obj->kind == ObjectKind::Bone) invMass.segment(st.first, st.current.vertexCount()).setConstant(1.0 / opts.boneMassRatio);
+    // Collision sets, only for declared pairs: each direction is A's vertices against B's surface (fan triangles of
+    // B's simplex faces, whose corners are B's particles). Projected last in a step, so contacts have the last word.
+    std::vector<std::unique_ptr<CollisionConstraints>> collide;
+    if (opts.collisions && !scene.collisions.empty()) {
+      std::map<size_t, Triangles> fans;
+      auto fanOf = [&](size_t i) -> const Triangles& {
+        auto it = fans.find(i);
+        if (it == fans.end()) {
+          Triangles t = simplexFanTriangles(objs[i].current);
+          t.array() += objs[i].first;
+          it = fans.emplace(i, std::move(t)).first;
+        }
+        return it->second;
+      };
+      for (const auto& [a, b] : scene.collisions)
+        for (auto [u, v] : {std::pair<size_t, size_t>(a, b), std::pair<size_t, size_t>(b, a)})
+          collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(), fanOf(v),
+                                                                   opts.collisionGapMm, proximity, opts.collisionFriction));
+      res.collisionSetsBuilt += static_cast<int>(collide.size());
+    }
+    for (auto& c : collide) sets.push_back(c.get());
     PbdSolver solver(opts.pbd);
-    solver.prepare(x, Eigen::VectorXd::Ones(n));
+    solver.prepare(x, invMass);
     LevelReport rep;
     rep.sigmaMm = rs.sigmaMm[order];
     rep.rangeMm = rs.rangeMm[order];
@@ -326,6 +371,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         st.targets->setTargets(found.targets, weights);
         st.residual = found.residual;
       }
+      {
+        const auto tc = Clock::now();
+        for (auto& c : collide) c->detect(solver.positions(), s == 0);
+        collisionDetectSeconds += since(tc);
+      }
       rep.lastMaxMoveMm = solver.step(sets);
       ++rep.steps;
       ++stepsDone;
@@ -338,6 +388,28 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       }
     }
     stepsDone = (order + 1) * rs.maxStepsPerLevel;
+    if (l == 0 && !collide.empty()) {
+      // Clean-up: collision-only sweeps on the final positions, so no vertex is left inside a partner.
+      const auto tc = Clock::now();
+      Points p = solver.positions();
+      for (int sweep = 0; sweep < opts.collisionFinalSweeps; ++sweep)
+        for (auto& c : collide) {
+          c->detect(p, sweep == 0);
+          c->project(p, solver.inverseMass());
+        }
+      solver.reset(p, solver.inverseMass());
+      // Penetration per declared pair (both directions), measured on the final positions.
+      for (size_t k = 0; k < scene.collisions.size(); ++k) {
+        double worst = 0;
+        for (int d = 0; d < 2; ++d) {
+          CollisionConstraints& c = *collide[2 * k + static_cast<size_t>(d)];
+          c.detect(p);
+          worst = std::max(worst, c.maxPenetration(p));
+        }
+        res.pairPenetrationMm.push_back(worst);
+      }
+      collisionDetectSeconds += since(tc);
+    }
     for (auto& st : objs) {
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
       // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
@@ -359,6 +431,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.objects.push_back(std::move(st.out));
   }
   res.secondsPerStage["evolution"] = since(te) - features.seconds();
+  if (res.collisionSetsBuilt > 0) res.secondsPerStage["collision-detection"] = collisionDetectSeconds;
   res.secondsPerStage["features"] = features.seconds();
   res.featureScalesBuilt = features.built();
 

@@ -1,6 +1,7 @@
 // Real scan: the right femur of totalseg-ct segmented from a template built from the left femur's label, mirrored
 // across the mid-sagittal plane through the sacrum (label 25; the femur labels give only the template). Skipped without ../shared/data.
 #include <cstdio>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -51,4 +52,47 @@ TEST(RealCtFemur, MirroredContralateralTemplate) {
   EXPECT_GT(after.dice, 0.85);
   EXPECT_GT(after.dice, before.dice + 0.08);
   EXPECT_LT(after.assd, before.assd);
+}
+
+// The same femur with the hip bone of its side as a second object (template: the other side's hip bone label,
+// mirrored) and a collision pair between them: the contact keeps the femoral head out of the acetabulum.
+TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
+  const std::string data = msk::test::sharedData();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
+  const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
+  double sx = 0, n = 0;
+  for (int k = 0; k < ct.grid.dims[2]; ++k)
+    for (int j = 0; j < ct.grid.dims[1]; ++j)
+      for (int i = 0; i < ct.grid.dims[0]; ++i)
+        if (labels.at(i, j, k) == 25) {
+          sx += ct.grid.toWorld(Eigen::Vector3d(i, j, k)).x();
+          n += 1;
+        }
+  const double midX = sx / n;
+  msk::Scene scene;
+  for (auto [name, label, from] : {std::tuple{"femur_right", 76, 75}, std::tuple{"hip_right", 78, 77}}) {
+    msk::SceneObject o;
+    o.name = name;
+    o.label = label;
+    o.kind = msk::ObjectKind::Bone;
+    o.templ = msk::mirrorMesh(msk::templateFromLabels(labels, from, msk::TemplateOptions{}), Eigen::Vector3d(midX, 0, 0),
+                              Eigen::Vector3d::UnitX());
+    scene.objects.push_back(o);
+  }
+  scene.collisions.push_back({0, 1});
+  const msk::SegmentationResult res = msk::segmentScene(ct, scene, msk::SegmentOptions{});
+  msk::LabelMap start(ct.grid, 0);
+  msk::rasterizeInto(start, scene.objects[0].templ, 76);
+  msk::rasterizeInto(start, scene.objects[1].templ, 78);
+  for (int label : {76, 78}) {
+    const msk::SegmentationMetrics before = msk::labelMetrics(start, label, labels, label);
+    const msk::SegmentationMetrics after = msk::labelMetrics(res.labels, label, labels, label);
+    std::printf("label %d: mirrored template Dice %.4f ASSD %.2f mm -> segmented with collisions: Dice %.4f ASSD %.2f mm\n",
+                label, before.dice, before.assd, after.dice, after.assd);
+  }
+  std::printf("overlap voxels %zu, deepest penetration %.2f mm, %.1f s\n", res.overlapVoxels, res.pairPenetrationMm[0],
+              res.seconds);
+  const msk::SegmentationMetrics femur = msk::labelMetrics(res.labels, 76, labels, 76);
+  EXPECT_GT(femur.dice, 0.85);
 }

@@ -46,6 +46,12 @@ struct SegmentOptions {
   double farTargetScaleMm = 0;  ///< > 0: a target d mm away pulls with weight 1/(1 + (d/scale)²) (robust to outliers)
   double edgePenalty = 0.1;   ///< score lost per mm of distance from the vertex (relative to the best edge)
   InternalMode internalMode = InternalMode::ShapeMemory;       ///< shape memory or smoothing
+  bool collisions = true;       ///< respond to the scene's collision pairs (false: objects ignore each other)
+  double collisionGapMm = 0.2;  ///< default clearance g kept between partners (a pair in the scene may override)
+  double collisionProximityMm = 0;  ///< contact search reach beyond the gap (0 = max(1 mm, ½ the largest spacing))
+  double collisionFriction = 0;     ///< default friction μ ∈ [0, 1]
+  double boneMassRatio = 5;     ///< bone particles are this many times heavier than muscle ones (share less of a contact)
+  int collisionFinalSweeps = 10;  ///< collision-only detect + project sweeps after the last step (penetration clean-up)
   PbdOptions pbd;               ///< scheme settings
 };
 
@@ -87,7 +93,11 @@ struct SegmentationResult {
   double seconds = 0;            ///< whole run
   std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
   int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
+  int collisionSetsBuilt = 0;    ///< directed vertex–surface collision sets built over all levels (0 without pairs)
   size_t overlapVoxels = 0;      ///< voxels inside more than one object's surface
+  /// Per declared pair (scene order): the deepest vertex of either object inside the other's final simplex surface
+  /// (mm, 0 if none), measured after the run.
+  std::vector<double> pairPenetrationMm;
 };
 
 /// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).
