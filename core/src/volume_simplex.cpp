@@ -1,0 +1,373 @@
+#include "msk/core/volume_simplex.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "msk/core/error.h"
+
+namespace msk {
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+std::string str(long long v) { return std::to_string(v); }
+
+/// Local face j of a tet is the face opposite node j, listed so that its normal points out of a positive tet.
+constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+/// Face-adjacency of a tet mesh: across(t, j) = the tet sharing local face j of t, −1 on the boundary. Returns the
+/// problem (a face in more than two tets) or an empty string.
+std::string faceAdjacency(const Tets& tets, Eigen::Matrix<int, Eigen::Dynamic, 4>& across) {
+  struct Slot {
+    std::array<int, 3> key;
+    int tet, local;
+  };
+  const int nt = static_cast<int>(tets.rows());
+  std::vector<Slot> slots;
+  slots.reserve(static_cast<size_t>(nt) * 4);
+  for (int t = 0; t < nt; ++t) {
+    for (int j = 0; j < 4; ++j) {
+      std::array<int, 3> key = {tets(t, kFace[j][0]), tets(t, kFace[j][1]), tets(t, kFace[j][2])};
+      std::sort(key.begin(), key.end());
+      slots.push_back({key, t, j});
+    }
+  }
+  std::sort(slots.begin(), slots.end(), [](const Slot& a, const Slot& b) {
+    return a.key != b.key ? a.key < b.key : (a.tet != b.tet ? a.tet < b.tet : a.local < b.local);
+  });
+  across.resize(nt, 4);
+  across.setConstant(-1);
+  for (size_t i = 0; i < slots.size();) {
+    size_t e = i + 1;
+    while (e < slots.size() && slots[e].key == slots[i].key) ++e;
+    if (e - i > 2)
+      return "face (" + str(slots[i].key[0]) + ", " + str(slots[i].key[1]) + ", " + str(slots[i].key[2]) +
+             ") is shared by " + str(static_cast<long long>(e - i)) + " tets";
+    if (e - i == 2) {
+      across(slots[i].tet, slots[i].local) = slots[i + 1].tet;
+      across(slots[i + 1].tet, slots[i + 1].local) = slots[i].tet;
+    }
+    i = e;
+  }
+  return "";
+}
+
+/// Boundary faces (outward) and their owners from an adjacency table, in tet order then local-face order.
+Triangles boundaryFromAdjacency(const Tets& tets, const Eigen::Matrix<int, Eigen::Dynamic, 4>& across,
+                                Eigen::VectorXi* owner) {
+  const int nt = static_cast<int>(tets.rows());
+  int nb = 0;
+  for (int t = 0; t < nt; ++t)
+    for (int j = 0; j < 4; ++j) nb += across(t, j) < 0 ? 1 : 0;
+  Triangles faces(nb, 3);
+  if (owner) owner->resize(nb);
+  int g = 0;
+  for (int t = 0; t < nt; ++t) {
+    for (int j = 0; j < 4; ++j) {
+      if (across(t, j) >= 0) continue;
+      faces.row(g) << tets(t, kFace[j][0]), tets(t, kFace[j][1]), tets(t, kFace[j][2]);
+      if (owner) (*owner)[g] = t;
+      ++g;
+    }
+  }
+  return faces;
+}
+
+/// The triangle mesh of `faces` over `nodes` with the unused nodes dropped; nodeOf (optional) maps back.
+TriangleMesh compactSurface(const Points& nodes, const Triangles& faces, Eigen::VectorXi* nodeOf) {
+  std::vector<int> compact(static_cast<size_t>(nodes.rows()), -1);
+  std::vector<int> used;
+  TriangleMesh s;
+  s.faces.resize(faces.rows(), 3);
+  for (Eigen::Index f = 0; f < faces.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      int& c = compact[static_cast<size_t>(faces(f, k))];
+      if (c < 0) {
+        c = static_cast<int>(used.size());
+        used.push_back(faces(f, k));
+      }
+      s.faces(f, k) = c;
+    }
+  }
+  s.vertices.resize(static_cast<Eigen::Index>(used.size()), 3);
+  if (nodeOf) nodeOf->resize(static_cast<Eigen::Index>(used.size()));
+  for (size_t i = 0; i < used.size(); ++i) {
+    s.vertices.row(static_cast<Eigen::Index>(i)) = nodes.row(used[i]);
+    if (nodeOf) (*nodeOf)[static_cast<Eigen::Index>(i)] = used[i];
+  }
+  return s;
+}
+
+/// The 4 neighbour positions of simplex vertex v.
+void gather(const Points& p, const NeighborTable& nb, int v, Vec3 pi[4]) {
+  for (int i = 0; i < 4; ++i) pi[i] = p.row(nb(v, i)).transpose();
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------ tet meshes
+
+double signedTetVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return (b - a).dot((c - a).cross(d - a)) / 6.0;
+}
+
+Eigen::VectorXd tetVolumes(const TetMesh& m) {
+  Eigen::VectorXd v(m.tetCount());
+  for (int t = 0; t < m.tetCount(); ++t)
+    v[t] = signedTetVolume(m.nodes.row(m.tets(t, 0)), m.nodes.row(m.tets(t, 1)), m.nodes.row(m.tets(t, 2)),
+                           m.nodes.row(m.tets(t, 3)));
+  return v;
+}
+
+double totalVolume(const TetMesh& m) { return tetVolumes(m).sum(); }
+
+std::string tetMeshProblem(const TetMesh& m) {
+  const int nn = m.nodeCount(), nt = m.tetCount();
+  if (nn == 0 || nt == 0) return "empty tet mesh (" + str(nn) + " nodes, " + str(nt) + " tets)";
+  if (!m.nodes.allFinite()) return "non-finite node coordinates";
+  for (int t = 0; t < nt; ++t) {
+    for (int a = 0; a < 4; ++a) {
+      const int u = m.tets(t, a);
+      if (u < 0 || u >= nn) return "tet " + str(t) + " has a node index out of range (" + str(u) + ")";
+      for (int b = 0; b < a; ++b)
+        if (m.tets(t, b) == u) return "tet " + str(t) + " repeats node " + str(u);
+    }
+  }
+  const Eigen::VectorXd vol = tetVolumes(m);
+  for (int t = 0; t < nt; ++t)
+    if (!(vol[t] > 0)) return "tet " + str(t) + " is not positively oriented (volume " + std::to_string(vol[t]) + ")";
+  Eigen::Matrix<int, Eigen::Dynamic, 4> across;
+  return faceAdjacency(m.tets, across);
+}
+
+Triangles tetBoundaryFaces(const TetMesh& m, Eigen::VectorXi* owner) {
+  Eigen::Matrix<int, Eigen::Dynamic, 4> across;
+  const std::string p = faceAdjacency(m.tets, across);
+  if (!p.empty()) throw Error("tetBoundaryFaces: " + p);
+  return boundaryFromAdjacency(m.tets, across, owner);
+}
+
+TriangleMesh tetBoundary(const TetMesh& m, Eigen::VectorXi* nodeOf) {
+  return compactSurface(m.nodes, tetBoundaryFaces(m), nodeOf);
+}
+
+// ------------------------------------------------------------------------------------------------ dual model
+
+int simplexBarycentric(const Vec3& p, const Vec3 pi[4], double eps[4]) {
+  const Vec3 c = (pi[0] + pi[1] + pi[2] + pi[3]) / 4.0;
+  double s = 0;
+  for (int i = 0; i < 4; ++i) s = std::max(s, (pi[i] - c).norm());
+  if (!(s > 0) || !std::isfinite(s) || !p.allFinite()) {
+    for (int i = 0; i < 4; ++i) eps[i] = 0.25;
+    return 2;
+  }
+  // Scale-free frame: neighbours within the unit ball around their centroid.
+  Vec3 q[4];
+  for (int i = 0; i < 4; ++i) q[i] = (pi[i] - c) / s;
+  const Vec3 x = (p - c) / s;
+  Eigen::Matrix3d e;
+  e << q[1] - q[0], q[2] - q[0], q[3] - q[0];
+  // A regular tet inscribed in the unit sphere has volume 8/(9√3) ≈ 0.51; relative flatness below 1e-6 is coplanar.
+  const double det = e.determinant();
+  if (std::fabs(det) / 6.0 > 1e-6 * 0.51) {
+    const Vec3 b = e.partialPivLu().solve(x - q[0]);
+    eps[0] = 1.0 - b.sum();
+    eps[1] = b[0];
+    eps[2] = b[1];
+    eps[3] = b[2];
+    return 0;
+  }
+  // Coplanar (or collinear) neighbours: minimum-norm affine least squares [q0..q3; 1 1 1 1] ε = [x; 1].
+  Eigen::Matrix4d a;
+  a.topRows<3>() << q[0], q[1], q[2], q[3];
+  a.row(3).setOnes();
+  Eigen::Vector4d rhs;
+  rhs << x, 1.0;
+  Eigen::CompleteOrthogonalDecomposition<Eigen::Matrix4d> cod;
+  cod.setThreshold(1e-6);
+  cod.compute(a);
+  Eigen::Vector4d sol = cod.solve(rhs);
+  const bool exact = (a * sol - rhs).norm() < 1e-6 && sol.allFinite();
+  const double sum = sol.sum();
+  if (std::isfinite(sum) && std::fabs(sum) > 1e-12)
+    sol /= sum;
+  else
+    sol.setConstant(0.25);
+  for (int i = 0; i < 4; ++i) eps[i] = sol[i];
+  return exact ? 1 : 2;
+}
+
+VolumeSimplexMesh volumeSimplexFromTets(const TetMesh& mesh) {
+  const std::string problem = tetMeshProblem(mesh);
+  if (!problem.empty()) throw Error("volumeSimplexFromTets: invalid tet mesh: " + problem);
+  Eigen::Matrix<int, Eigen::Dynamic, 4> across;
+  faceAdjacency(mesh.tets, across);
+  Eigen::VectorXi owner;
+  VolumeSimplexMesh vm;
+  vm.tets = mesh.tets;
+  vm.nodeCount = mesh.nodeCount();
+  vm.boundaryFaces = boundaryFromAdjacency(mesh.tets, across, &owner);
+  const int nt = mesh.tetCount(), nb = vm.ghostCount(), n = nt + nb;
+
+  // The ghost layer: the 2-simplex dual of the boundary triangulation (vertex g = boundary face g).
+  const TriangleMesh surface = compactSurface(mesh.nodes, vm.boundaryFaces, nullptr);
+  {
+    const std::string sp = closedMeshProblem(surface);
+    if (!sp.empty()) throw Error("volumeSimplexFromTets: the boundary of the tet mesh is not a closed manifold: " + sp);
+  }
+  vm.boundary = simplexFromTriangles(surface);
+
+  SimplexMesh& s = vm.simplex;
+  s.k = 3;
+  s.positions.resize(n, 3);
+  s.neighbors.resize(n, 4);
+  for (int t = 0; t < nt; ++t)
+    s.positions.row(t) = (mesh.nodes.row(mesh.tets(t, 0)) + mesh.nodes.row(mesh.tets(t, 1)) +
+                          mesh.nodes.row(mesh.tets(t, 2)) + mesh.nodes.row(mesh.tets(t, 3))) /
+                         4.0;
+  s.positions.bottomRows(nb) = vm.boundary.positions;
+  int g = 0;
+  for (int t = 0; t < nt; ++t)
+    for (int j = 0; j < 4; ++j) s.neighbors(t, j) = across(t, j) >= 0 ? across(t, j) : nt + g++;
+  for (int b = 0; b < nb; ++b) {
+    for (int k = 0; k < 3; ++k) s.neighbors(nt + b, k) = nt + vm.boundary.neighbors(b, k);
+    s.neighbors(nt + b, 3) = owner[b];
+  }
+  const std::string sp = simplexMeshProblem(s);
+  MSK_ASSERT(sp.empty(), "dual 3-simplex mesh invalid: " + sp);
+
+  vm.epsilon.resize(n, 4);
+  vm.degenerate.resize(n);
+  for (int v = 0; v < n; ++v) {
+    Vec3 pi[4];
+    gather(s.positions, s.neighbors, v, pi);
+    double eps[4];
+    vm.degenerate[v] = simplexBarycentric(s.positions.row(v).transpose(), pi, eps);
+    for (int i = 0; i < 4; ++i) vm.epsilon(v, i) = eps[i];
+  }
+  return vm;
+}
+
+Points volumeSimplexResiduals(const VolumeSimplexMesh& vm, const Points& p) {
+  const int n = vm.vertexCount();
+  MSK_ASSERT(p.rows() == n, "volumeSimplexResiduals: " + str(p.rows()) + " positions for " + str(n) + " vertices");
+  Points r(n, 3);
+  for (int v = 0; v < n; ++v) {
+    Vec3 c = -p.row(v).transpose();
+    for (int i = 0; i < 4; ++i) c += vm.epsilon(v, i) * p.row(vm.simplex.neighbors(v, i)).transpose();
+    if (vm.degenerate[v] == 2) c.setZero();
+    r.row(v) = c.transpose();
+  }
+  return r;
+}
+
+TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p) {
+  const int nt = vm.tetCount(), nb = vm.ghostCount(), nn = vm.nodeCount;
+  MSK_ASSERT(p.rows() == nt + nb,
+             "tetsFromVolumeSimplex: " + str(p.rows()) + " positions for " + str(nt + nb) + " vertices");
+  // A: one row per simplex vertex, the mean of its primal nodes (4 for a tet, 3 for a boundary face).
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(nt) * 4 + static_cast<size_t>(nb) * 3);
+  for (int t = 0; t < nt; ++t)
+    for (int k = 0; k < 4; ++k) trip.emplace_back(t, vm.tets(t, k), 0.25);
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < 3; ++k) trip.emplace_back(nt + b, vm.boundaryFaces(b, k), 1.0 / 3.0);
+  Eigen::SparseMatrix<double> a(nt + nb, nn);
+  a.setFromTriplets(trip.begin(), trip.end());
+
+  // N₀: the mean of the simplex vertices incident to each node (regularises nodes the system leaves free).
+  Points n0 = Points::Zero(nn, 3);
+  Eigen::VectorXd count = Eigen::VectorXd::Zero(nn);
+  for (int k = 0; k < a.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(a, k); it; ++it) {
+      n0.row(it.col()) += p.row(it.row());
+      count[it.col()] += 1.0;
+    }
+  for (int i = 0; i < nn; ++i) {
+    if (count[i] > 0) n0.row(i) /= count[i];
+  }
+
+  Eigen::SparseMatrix<double> ata = a.transpose() * a;
+  const double mu = 1e-6 * ata.diagonal().sum() / std::max(nn, 1);
+  for (int i = 0; i < nn; ++i) ata.coeffRef(i, i) += count[i] > 0 ? mu : 1.0;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(ata);
+  MSK_ASSERT(solver.info() == Eigen::Success, "tetsFromVolumeSimplex: factorisation failed");
+  Eigen::MatrixXd rhs = a.transpose() * Eigen::MatrixXd(p);
+  for (int i = 0; i < nn; ++i) rhs.row(i) += (count[i] > 0 ? mu : 1.0) * n0.row(i);
+  TetMesh out;
+  out.nodes = solver.solve(rhs);
+  out.tets = vm.tets;
+  return out;
+}
+
+double volumeSimplexVolume(const VolumeSimplexMesh& vm, const Points& p) {
+  return totalVolume(tetsFromVolumeSimplex(vm, p));
+}
+
+// ------------------------------------------------------------------------------------------------ constraint
+
+bool volumeSimplexCorrection(const Vec3& p, const Vec3 pi[4], double w, const double wi[4], const double eps[4],
+                             double gamma, Vec3& dp, Vec3 dpi[4]) {
+  const double sumEps = eps[0] + eps[1] + eps[2] + eps[3];
+  if (!(std::fabs(sumEps - 1.0) < 1e-9)) return false;  // momentum is conserved only for affine weights
+  Vec3 c = -p;
+  for (int i = 0; i < 4; ++i) c += eps[i] * pi[i];
+  if (!c.allFinite()) return false;
+  const double denom =
+      w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2] + eps[3] * eps[3] * wi[3];
+  if (!(denom > 0) || !std::isfinite(denom)) return false;
+  const double mbar = gamma / denom;  // γ m̄; α dt² = γ m̄
+  dp = (w * mbar) * c;
+  for (int i = 0; i < 4; ++i) dpi[i] = (-wi[i] * eps[i] * mbar) * c;
+  return true;
+}
+
+VolumeSimplexConstraints::VolumeSimplexConstraints(const VolumeSimplexMesh& model, double gamma,
+                                                   VolumeBoundary boundary)
+    : nb_(model.simplex.neighbors), eps_(model.epsilon), gamma_(gamma) {
+  if (!(gamma >= 0.0 && gamma <= 1.0))
+    throw ParameterError("volume stiffness", std::to_string(gamma), "must be in [0, 1]");
+  MSK_ASSERT(
+      model.simplex.k == 3 && nb_.cols() == 4 && eps_.rows() == nb_.rows() && model.degenerate.size() == nb_.rows(),
+      "3-simplex volume model expected");
+  const int n = static_cast<int>(nb_.rows());
+  active_.resize(n);
+  for (int v = 0; v < n; ++v) {
+    const bool ghost = v >= model.tetCount();
+    active_[v] = model.degenerate[v] != 2 && (!ghost || boundary == VolumeBoundary::Constrained) ? 1 : 0;
+  }
+}
+
+void VolumeSimplexConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
+  const int n = static_cast<int>(nb_.rows());
+  MSK_ASSERT(pAll.rows() >= first_ + n && wAll.size() == pAll.rows(), "volume-simplex constraints: size mismatch");
+  auto p = pAll.middleRows(first_, n);
+  const auto w = wAll.segment(first_, n);
+  skipped_ = 0;
+  for (int v = 0; v < n; ++v) {
+    if (!active_[v]) continue;
+    Vec3 pi[4];
+    double wi[4], eps[4];
+    for (int i = 0; i < 4; ++i) {
+      pi[i] = p.row(nb_(v, i)).transpose();
+      wi[i] = w[nb_(v, i)];
+      eps[i] = eps_(v, i);
+    }
+    Vec3 dp, dpi[4];
+    if (!volumeSimplexCorrection(p.row(v).transpose(), pi, w[v], wi, eps, gamma_, dp, dpi)) {
+      ++skipped_;
+      continue;
+    }
+    p.row(v) += dp.transpose();
+    for (int i = 0; i < 4; ++i) p.row(nb_(v, i)) += dpi[i].transpose();
+  }
+}
+
+}  // namespace msk

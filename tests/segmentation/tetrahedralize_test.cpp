@@ -1,0 +1,107 @@
+#include "msk/segmentation/tetrahedralize.h"
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+#include "msk/core/volume_simplex.h"
+
+// A sphere of radius 20 mm: the tet mesh fills the surface's volume, is positively oriented and repeatable.
+TEST(Tetrahedralize, SphereVolumeOrientationAndDeterminism) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
+  const double surfaceVolume = msk::enclosedVolume(sphere);
+  const msk::TetMesh a = msk::tetrahedralize(sphere);
+  EXPECT_EQ(msk::tetMeshProblem(a), "");
+  EXPECT_GT(a.tetCount(), 100);
+  const Eigen::VectorXd vol = msk::tetVolumes(a);
+  EXPECT_GT(vol.minCoeff(), 0.0);
+  const double error = (vol.sum() - surfaceVolume) / surfaceVolume;
+  EXPECT_LT(std::fabs(error), 0.03);
+  // The boundary is a closed surface and its nodes stay near the sphere.
+  const msk::TriangleMesh boundary = msk::tetBoundary(a);
+  EXPECT_EQ(msk::closedMeshProblem(boundary), "");
+  const double rmax = a.nodes.rowwise().norm().maxCoeff();
+  EXPECT_LT(rmax, 20.5);
+
+  for (int run = 0; run < 2; ++run) {
+    const msk::TetMesh b = msk::tetrahedralize(sphere);
+    ASSERT_EQ(a.tetCount(), b.tetCount());
+    ASSERT_EQ(a.nodeCount(), b.nodeCount());
+    EXPECT_TRUE(a.tets == b.tets);
+    EXPECT_TRUE(a.nodes == b.nodes);
+  }
+  std::printf(
+      "[measure] icosphere(20, 3): %d nodes, %d tets, volume %.1f vs surface %.1f mm^3 (%+.2f%%), "
+      "smallest tet %.3f mm^3, %d boundary faces\n",
+      a.nodeCount(), a.tetCount(), vol.sum(), surfaceVolume, 100 * error, vol.minCoeff(), boundary.faceCount());
+}
+
+// The tet mesh carries a 3-simplex volume model whose rest shape satisfies its constraints.
+TEST(Tetrahedralize, FeedsVolumeSimplexModel) {
+  const msk::TetMesh m = msk::tetrahedralize(msk::makeIcosphere(20.0, 3));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(m);
+  EXPECT_EQ(msk::simplexMeshProblem(vm.simplex), "");
+  EXPECT_EQ(vm.tetCount(), m.tetCount());
+  const msk::Points r = msk::volumeSimplexResiduals(vm, vm.simplex.positions);
+  EXPECT_LT(r.rowwise().norm().maxCoeff(), 1e-9);
+  const double v = msk::volumeSimplexVolume(vm, vm.simplex.positions);
+  EXPECT_NEAR(v, msk::totalVolume(m), 1e-6 * msk::totalVolume(m));
+  int degenerate = 0;
+  for (int i = 0; i < vm.vertexCount(); ++i) degenerate += vm.degenerate[i] != 0 ? 1 : 0;
+  const double maxEps = vm.epsilon.topRows(vm.tetCount()).cwiseAbs().maxCoeff();
+  const double maxEpsGhost = vm.epsilon.bottomRows(vm.ghostCount()).cwiseAbs().maxCoeff();
+  EXPECT_EQ(vm.degenerate.head(vm.tetCount()).cwiseAbs().sum(), 0);
+
+  // Unstructured interior scrambled by up to 10 % of the diagonal, ghosts fixed: the constraints restore it.
+  const msk::Points rest = vm.simplex.positions;
+  const double diag = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-0.1 * diag / std::sqrt(3.0), 0.1 * diag / std::sqrt(3.0));
+  msk::Points p = rest;
+  for (int i = 0; i < vm.tetCount(); ++i) p.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(vm.vertexCount());
+  w.tail(vm.ghostCount()).setZero();
+  msk::VolumeSimplexConstraints c(vm, 1.0);
+  for (int it = 0; it < 1000; ++it) c.project(p, w);
+  const double posErr = (p - rest).rowwise().norm().maxCoeff() / diag;
+  const double volErr = std::fabs(msk::volumeSimplexVolume(vm, p) - v) / v;
+  EXPECT_LT(posErr, 0.01);
+  EXPECT_LT(volErr, 0.02);
+  std::printf(
+      "[measure] sphere volume model: %d tets + %d ghosts, %d coplanar-neighbour vertices, max |eps| tets "
+      "%.2f ghosts %.2f; after 1000 passes max error %.2e of diagonal, volume %.2e off\n",
+      vm.tetCount(), vm.ghostCount(), degenerate, maxEps, maxEpsGhost, posErr, volErr);
+}
+
+// Exudation removes slivers (same nodes, fewer and fuller tets); its tie-breaking is not repeatable, so only the
+// geometry is checked.
+TEST(Tetrahedralize, ExudationRemovesSlivers) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
+  msk::TetOptions options;
+  options.exude = true;
+  const msk::TetMesh plain = msk::tetrahedralize(sphere), exuded = msk::tetrahedralize(sphere, options);
+  EXPECT_EQ(msk::tetMeshProblem(exuded), "");
+  EXPECT_NEAR(msk::totalVolume(exuded), msk::totalVolume(plain), 1e-6 * msk::totalVolume(plain));
+  EXPECT_GT(msk::tetVolumes(exuded).minCoeff(), msk::tetVolumes(plain).minCoeff());
+  std::printf("[measure] smallest tet: %.3f mm^3 plain (%d tets), %.3f mm^3 exuded (%d tets)\n",
+              msk::tetVolumes(plain).minCoeff(), plain.tetCount(), msk::tetVolumes(exuded).minCoeff(),
+              exuded.tetCount());
+}
+
+TEST(Tetrahedralize, RejectsOpenSurfacesAndBadOptions) {
+  msk::TriangleMesh open = msk::makeIcosphere(10.0, 1);
+  open.faces.conservativeResize(open.faceCount() - 1, 3);
+  EXPECT_THROW(msk::tetrahedralize(open), msk::Error);
+  msk::TriangleMesh inward = msk::makeIcosphere(10.0, 1);
+  msk::flipFaces(inward);
+  EXPECT_THROW(msk::tetrahedralize(inward), msk::Error);
+  msk::TetOptions bad;
+  bad.cellSizeMm = -1;
+  EXPECT_THROW(msk::tetrahedralize(msk::makeIcosphere(10.0, 1), bad), msk::ParameterError);
+  bad = {};
+  bad.facetAngleDeg = 40;
+  EXPECT_THROW(msk::tetrahedralize(msk::makeIcosphere(10.0, 1), bad), msk::ParameterError);
+}
