@@ -189,3 +189,31 @@ TEST(CollisionConstraints, OverlappingSpheresSeparate) {
   EXPECT_LT((p.colwise().sum() - momentumBefore).norm(), 1e-8 * p.rows());
   EXPECT_THROW(msk::CollisionConstraints(0, na, tb, -1.0, 3.0, 0.0), msk::ParameterError);
 }
+
+// Without the inside test a vertex is taken to be outside the partner: a contact can keep it `gap` away but never
+// pushes it through the surface; with the test, a vertex inside is pushed out along the partner's outward normal.
+TEST(CollisionConstraints, InsideTestDecidesTheSideAndTheOutsideAssumptionNeverPushesThrough) {
+  const msk::TriangleMesh b = msk::makeIcosphere(10, 3);
+  const int nb = b.vertexCount();
+  for (const double start : {9.5, 10.1}) {  // 0.5 mm inside, 0.1 mm outside (within the 0.2 mm gap)
+    for (const bool insideTest : {true, false}) {
+      msk::Points p(nb + 1, 3);
+      p.topRows(nb) = b.vertices;
+      p.row(nb) = Eigen::RowVector3d(start, 0.01, 0.02);
+      msk::Triangles tb = b.faces;
+      msk::CollisionConstraints c(nb, 1, tb, 0.2, 1.0, 0.0);
+      const Eigen::VectorXd w = Eigen::VectorXd::Ones(nb + 1);
+      const double r0 = p.row(nb).norm();
+      c.detect(p, insideTest);
+      ASSERT_EQ(c.contacts(), 1);
+      c.project(p, w);
+      const double r = p.row(nb).norm();
+      if (start > 10 || insideTest) {
+        EXPECT_GT(r, r0 + 0.02) << "start " << start << " insideTest " << insideTest;  // moved outward
+      } else {
+        EXPECT_LE(r, r0 + 1e-12) << "an assumed-outside vertex is pushed away from the surface it faces, inward";
+        EXPECT_GT(r, 9.5 - 0.25);  // ... by at most the gap: never through
+      }
+    }
+  }
+}
