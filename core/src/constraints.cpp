@@ -11,9 +11,6 @@
 namespace msk {
 
 namespace {
-void checkUnit(const char* name, double v) {
-  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
-}
 
 /// Circumradius of triangle (a, b, c) and its unit normal (b−a)×(c−a); false if degenerate.
 bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
@@ -85,7 +82,7 @@ bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, d
 
 SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode)
     : nb_(reference.neighbors), gamma_(gamma), mode_(mode) {
-  checkUnit("internal stiffness", gamma);
+  checkUnitInterval("internal stiffness", gamma);
   MSK_ASSERT(reference.k == 2 && nb_.cols() == 3, "2-simplex mesh expected");
   const int n = reference.vertexCount();
   eps_.resize(n, 3);
@@ -165,7 +162,7 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
 
 // ------------------------------------------------------------------------------------------------ targets
 
-TargetConstraints::TargetConstraints(double gamma) : gamma_(gamma) { checkUnit("image stiffness", gamma); }
+TargetConstraints::TargetConstraints(double gamma) : gamma_(gamma) { checkUnitInterval("image stiffness", gamma); }
 
 void TargetConstraints::setTargets(const Points& targets, const Eigen::VectorXd& weights) {
   MSK_ASSERT(targets.rows() == weights.size(), "targets and weights differ in size");
@@ -226,11 +223,11 @@ Eigen::Matrix4d fitTransform(const Points& from, const Points& to, const Eigen::
 
 ShapeMatchingConstraint::ShapeMatchingConstraint(const Points& reference, PriorTransform transform, double lambda)
     : ref_(reference), transform_(transform), lambda_(lambda) {
-  checkUnit("global prior weight", lambda);
+  checkUnitInterval("global prior weight", lambda);
 }
 
 void ShapeMatchingConstraint::setLambda(double lambda) {
-  checkUnit("global prior weight", lambda);
+  checkUnitInterval("global prior weight", lambda);
   lambda_ = lambda;
 }
 
@@ -284,7 +281,7 @@ CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, const Tr
   if (!(gapMm >= 0) || !std::isfinite(gapMm)) throw ParameterError("collision gap", std::to_string(gapMm), "must be >= 0 mm");
   if (!(proximityMm > 0) || !std::isfinite(proximityMm))
     throw ParameterError("collision proximity", std::to_string(proximityMm), "must be > 0 mm");
-  checkUnit("collision friction", friction);
+  checkUnitInterval("collision friction", friction);
   first_ = firstA;
   if (tri_.rows() > 0) {
     idxLo_ = tri_.minCoeff();

@@ -15,10 +15,6 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-void checkUnit(const char* name, double v) {
-  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
-}
-
 void checkAttachment(const RadialAttachment& a, const char* caller) {
   const Eigen::Index n = a.radius.size();
   if (a.axisIndex.rows() != n || a.weights.rows() != n)
@@ -217,14 +213,14 @@ bool radialCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], cons
 
 RadialConstraints::RadialConstraints(const RadialAttachment& attachment, int firstAxisParticle, double gamma)
     : att_(attachment), firstAxis_(0), gamma_(gamma) {
-  checkUnit("radial stiffness", gamma);
+  checkUnitInterval("radial stiffness", gamma);
   checkAttachment(att_, "RadialConstraints");
   setFirstAxisParticle(firstAxisParticle);
   axisCount_ = att_.vertexCount() > 0 ? att_.axisIndex.maxCoeff() + 1 : 0;
 }
 
 void RadialConstraints::setGamma(double gamma) {
-  checkUnit("radial stiffness", gamma);
+  checkUnitInterval("radial stiffness", gamma);
   gamma_ = gamma;
 }
 
@@ -257,7 +253,7 @@ void RadialConstraints::project(Points& p, const Eigen::VectorXd& w) {
 
 void recenterAxis(const Points& surface, Points& axis, const RadialAttachment& att, double gamma,
                   const Eigen::VectorXd* axisInverseMasses) {
-  checkUnit("axis centering stiffness", gamma);
+  checkUnitInterval("axis centering stiffness", gamma);
   checkAttachment(att, "recenterAxis");
   const int na = static_cast<int>(axis.rows()), nv = att.vertexCount();
   MSK_ASSERT(surface.rows() == nv, "recenterAxis: surface and attachment differ in size");
@@ -289,7 +285,7 @@ void recenterAxis(const Points& surface, Points& axis, const RadialAttachment& a
 AxisCentering::AxisCentering(const RadialAttachment& attachment, int firstAxisParticle, int axisVertexCount,
                              double gamma)
     : att_(attachment), firstAxis_(firstAxisParticle), axisCount_(axisVertexCount), gamma_(gamma) {
-  checkUnit("axis centering stiffness", gamma);
+  checkUnitInterval("axis centering stiffness", gamma);
   checkAttachment(att_, "AxisCentering");
   if (firstAxisParticle < 0)
     throw ParameterError("axis centering first axis particle", std::to_string(firstAxisParticle), "must be >= 0");

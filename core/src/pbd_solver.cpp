@@ -12,8 +12,8 @@ namespace msk {
 PbdSolver::PbdSolver(const PbdOptions& o) : opts_(o) {
   if (!(o.dt > 0) || !std::isfinite(o.dt)) throw ParameterError("dt", std::to_string(o.dt), "must be positive");
   if (o.iterations < 1) throw ParameterError("iterations", std::to_string(o.iterations), "must be at least 1");
-  if (!(o.damping >= 0 && o.damping <= 1)) throw ParameterError("damping", std::to_string(o.damping), "must be in [0, 1]");
-  if (!(o.drag >= 0 && o.drag <= 1)) throw ParameterError("drag", std::to_string(o.drag), "must be in [0, 1]");
+  checkUnitInterval("damping", o.damping);
+  checkUnitInterval("drag", o.drag);
 }
 
 void PbdSolver::prepare(const Points& positions, const Eigen::VectorXd& inverseMass) {

@@ -332,8 +332,7 @@ bool volumeSimplexCorrection(const Vec3& p, const Vec3 pi[4], double w, const do
 VolumeSimplexConstraints::VolumeSimplexConstraints(const VolumeSimplexMesh& model, double gamma,
                                                    VolumeBoundary boundary)
     : nb_(model.simplex.neighbors), eps_(model.epsilon), gamma_(gamma) {
-  if (!(gamma >= 0.0 && gamma <= 1.0))
-    throw ParameterError("volume stiffness", std::to_string(gamma), "must be in [0, 1]");
+  checkUnitInterval("volume stiffness", gamma);
   MSK_ASSERT(
       model.simplex.k == 3 && nb_.cols() == 4 && eps_.rows() == nb_.rows() && model.degenerate.size() == nb_.rows(),
       "3-simplex volume model expected");

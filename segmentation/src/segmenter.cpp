@@ -18,10 +18,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-void checkUnit(const char* name, double v) {
-  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
-}
-
 /// Image features per scale, built on first use only.
 class FeatureCache {
  public:
@@ -257,11 +253,11 @@ void finishObject(ObjectState& st) {
 SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
                                 const ProgressFn& progress) {
   const auto t0 = Clock::now();
-  checkUnit("internal stiffness", opts.internalStiffness);
-  checkUnit("image stiffness", opts.imageStiffness);
-  checkUnit("global prior start", opts.priorStart);
-  checkUnit("global prior end", opts.priorEnd);
-  checkUnit("collision friction", opts.collisionFriction);
+  checkUnitInterval("internal stiffness", opts.internalStiffness);
+  checkUnitInterval("image stiffness", opts.imageStiffness);
+  checkUnitInterval("global prior start", opts.priorStart);
+  checkUnitInterval("global prior end", opts.priorEnd);
+  checkUnitInterval("collision friction", opts.collisionFriction);
   if (!(opts.collisionGapMm >= 0 && opts.collisionGapMm <= 10))
     throw ParameterError("collision gap", std::to_string(opts.collisionGapMm), "must be in [0, 10] mm");
   if (!(opts.collisionProximityMm >= 0 && opts.collisionProximityMm <= 50))

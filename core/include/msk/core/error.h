@@ -32,6 +32,11 @@ class ParameterError : public Error {
       : Error(name + " = " + value + ": " + problem) {}
 };
 
+/// Throws ParameterError naming `name` unless 0 ≤ v ≤ 1 (stiffness γ, weights λ, friction μ, damping); NaN fails.
+inline void checkUnitInterval(const std::string& name, double v) {
+  if (!(v >= 0.0 && v <= 1.0)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
+}
+
 /// A broken internal invariant (a bug): carries file and line.
 class InternalError : public Error {
  public:
