@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
 
 #include <Eigen/Dense>
 
@@ -275,181 +274,54 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
   return true;
 }
 
-CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm,
-                                           double proximityMm, double friction)
-    : firstA_(firstA), count_(vertexCount), tri_(trianglesB), gap_(gapMm), proximity_(proximityMm), friction_(friction) {
+namespace {
+void checkContactParameters(double gapMm, double proximityMm, double friction) {
   if (!(gapMm >= 0) || !std::isfinite(gapMm)) throw ParameterError("collision gap", std::to_string(gapMm), "must be >= 0 mm");
   if (!(proximityMm > 0) || !std::isfinite(proximityMm))
     throw ParameterError("collision proximity", std::to_string(proximityMm), "must be > 0 mm");
   checkUnitInterval("collision friction", friction);
+}
+}  // namespace
+
+CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::shared_ptr<CollisionSurface> surfaceB,
+                                           double gapMm, double proximityMm, double friction)
+    : firstA_(firstA), count_(vertexCount), surface_(std::move(surfaceB)), ownsSurface_(false), gap_(gapMm),
+      proximity_(proximityMm), friction_(friction) {
+  checkContactParameters(gapMm, proximityMm, friction);
+  MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
   first_ = firstA;
-  if (tri_.rows() > 0) {
-    idxLo_ = tri_.minCoeff();
-    idxHi_ = tri_.maxCoeff();
-  }
-  // Vertex → incident triangles (CSR over B's particle range), for vertex normals on demand.
-  vtStart_.assign(static_cast<size_t>(idxHi_ - idxLo_ + 2), 0);
-  for (int t = 0; t < tri_.rows(); ++t)
-    for (int k = 0; k < 3; ++k) ++vtStart_[static_cast<size_t>(tri_(t, k) - idxLo_) + 1];
-  for (size_t i = 1; i < vtStart_.size(); ++i) vtStart_[i] += vtStart_[i - 1];
-  vtTri_.assign(static_cast<size_t>(vtStart_.back()), 0);
-  {
-    std::vector<int> fill(vtStart_.begin(), vtStart_.end() - 1);
-    for (int t = 0; t < tri_.rows(); ++t)
-      for (int k = 0; k < 3; ++k) vtTri_[static_cast<size_t>(fill[static_cast<size_t>(tri_(t, k) - idxLo_)]++)] = t;
-  }
-  // Edge → the two triangles sharing it (connectivity is fixed; positions change every step).
-  for (int t = 0; t < tri_.rows(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      auto& slot = edgeFaces_[edgeKey(tri_(t, k), tri_(t, (k + 1) % 3))];
-      if (slot[0] < 0) slot[0] = t;
-      else slot[1] = t;
-    }
-  for (auto& kv : edgeFaces_)
-    if (kv.second[1] < 0) kv.second[1] = kv.second[0];  // open edge (not expected for closed partners)
+}
+
+CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm,
+                                           double proximityMm, double friction)
+    : CollisionConstraints(firstA, vertexCount,
+                           (checkContactParameters(gapMm, proximityMm, friction),
+                            std::make_shared<CollisionSurface>(trianglesB, gapMm + proximityMm)),
+                           gapMm, proximityMm, friction) {
+  ownsSurface_ = true;
 }
 
 void CollisionConstraints::detect(const Points& p, bool insideTest) {
   contacts_.clear();
-  const int nt = static_cast<int>(tri_.rows());
-  if (nt == 0 || count_ == 0) return;
+  if (surface_->triangles().rows() == 0 || count_ == 0) return;
+  if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
-  // Face normals and angle-weighted vertex normals of B: with the edge normals these are the pseudonormals that give
-  // the correct inside/outside sign at any closest feature of a closed mesh (Bærentzen & Aanæs 2005); an
-  // interpolated or single face normal does not beside edges, creases and thin wedges.
-  // Normals are computed on demand, only for the features that hold a contact.
-  auto faceNormal = [&](int t) -> Eigen::Vector3d {
-    const Eigen::Vector3d n = (p.row(tri_(t, 1)) - p.row(tri_(t, 0))).transpose().cross((p.row(tri_(t, 2)) - p.row(tri_(t, 0))).transpose());
-    const double len = n.norm();
-    return len > 0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
-  };
-  auto vertexNormal = [&](int i, bool angleWeighted) -> Eigen::Vector3d {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    const int local = i - idxLo_;
-    for (int k = vtStart_[static_cast<size_t>(local)]; k < vtStart_[static_cast<size_t>(local) + 1]; ++k) {
-      const int t = vtTri_[static_cast<size_t>(k)];
-      const Eigen::Vector3d n = faceNormal(t);
-      if (!angleWeighted) {
-        sum += n;
-        continue;
-      }
-      int c = 0;
-      while (tri_(t, c) != i) ++c;
-      const Eigen::Vector3d e1 = (p.row(tri_(t, (c + 1) % 3)) - p.row(i)).transpose(),
-                            e2 = (p.row(tri_(t, (c + 2) % 3)) - p.row(i)).transpose();
-      sum += std::atan2(e1.cross(e2).norm(), e1.dot(e2)) * n;
-    }
-    const double len = sum.norm();
-    return len > 0 ? Eigen::Vector3d(sum / len) : Eigen::Vector3d::Zero();
-  };
-  Points lo(nt, 3), hi(nt, 3);  // triangle bounding boxes
-  double extent = 0;
-  for (int t = 0; t < nt; ++t) {
-    const Eigen::Vector3d x[3] = {p.row(tri_(t, 0)), p.row(tri_(t, 1)), p.row(tri_(t, 2))};
-    lo.row(t) = x[0].cwiseMin(x[1]).cwiseMin(x[2]).transpose();
-    hi.row(t) = x[0].cwiseMax(x[1]).cwiseMax(x[2]).transpose();
-    extent += (x[0] - x[1]).norm();
-  }
-  // Dense grid (CSR) over B's bounding box grown by the reach; cell size the reach or the typical triangle extent,
-  // whichever is larger (and coarser if the box would need too many cells), so each query scans 27 cells.
-  const Eigen::Vector3d boxLo = lo.colwise().minCoeff().transpose().array() - reach;
-  const Eigen::Vector3d boxHi = hi.colwise().maxCoeff().transpose().array() + reach;
-  double h = std::max(reach, extent / nt);
-  const Eigen::Vector3d size = boxHi - boxLo;
-  while ((size / h).array().ceil().prod() > 4e6) h *= 1.5;
-  const Eigen::Vector3i dims = (size / h).array().floor().cast<int>() + 1;
-  auto cellOf = [&](const Eigen::Vector3d& x) -> Eigen::Vector3i {
-    return ((x - boxLo) / h).array().floor().cast<int>().cwiseMax(0).cwiseMin(dims.array() - 1);
-  };
-  const size_t cells = static_cast<size_t>(dims[0]) * static_cast<size_t>(dims[1]) * static_cast<size_t>(dims[2]);
-  auto cellIndex = [&](int x, int y, int z) {
-    return (static_cast<size_t>(z) * static_cast<size_t>(dims[1]) + static_cast<size_t>(y)) * static_cast<size_t>(dims[0]) +
-           static_cast<size_t>(x);
-  };
-  std::vector<int> start(cells + 1, 0), items;
-  for (int pass = 0; pass < 2; ++pass) {
-    if (pass == 1) {
-      for (size_t i = 0; i < cells; ++i) start[i + 1] += start[i];
-      items.resize(static_cast<size_t>(start[cells]));
-    }
-    std::vector<int> fill = pass == 1 ? std::vector<int>(start.begin(), start.end() - 1) : std::vector<int>();
-    for (int t = 0; t < nt; ++t) {
-      const Eigen::Vector3i a = cellOf(lo.row(t).transpose()), b = cellOf(hi.row(t).transpose());
-      for (int z = a[2]; z <= b[2]; ++z)
-        for (int y = a[1]; y <= b[1]; ++y)
-          for (int x = a[0]; x <= b[0]; ++x) {
-            const size_t ci = cellIndex(x, y, z);
-            if (pass == 0) ++start[ci + 1];
-            else items[static_cast<size_t>(fill[ci]++)] = t;
-          }
-    }
-  }
   for (int v = 0; v < count_; ++v) {
     const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
-    if ((q.array() < boxLo.array()).any() || (q.array() > boxHi.array()).any()) continue;
-    const Eigen::Vector3i c = cellOf(q);
-    double best = reach;
-    Contact found{v, -1, {0, 0, 0}, Eigen::Vector3d::Zero()};
-    Eigen::Vector3d closest = Eigen::Vector3d::Zero();
-    for (int z = std::max(0, c[2] - 1); z <= std::min(dims[2] - 1, c[2] + 1); ++z)
-      for (int y = std::max(0, c[1] - 1); y <= std::min(dims[1] - 1, c[1] + 1); ++y)
-        for (int x = std::max(0, c[0] - 1); x <= std::min(dims[0] - 1, c[0] + 1); ++x) {
-          const size_t ci = cellIndex(x, y, z);
-          for (int k = start[ci]; k < start[ci + 1]; ++k) {
-            const int t = items[static_cast<size_t>(k)];
-            // Cheap rejection: distance to the triangle's box already beyond the best found.
-            const double boxDist =
-                (lo.row(t).transpose() - q).cwiseMax(q - hi.row(t).transpose()).cwiseMax(0.0).norm();
-            if (boxDist >= best) continue;
-            Eigen::Vector3d bc;
-            const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri_(t, 0)).transpose(), p.row(tri_(t, 1)).transpose(),
-                                                              p.row(tri_(t, 2)).transpose(), &bc);
-            const double d = (cp - q).norm();
-            if (d < best) {
-              best = d;
-              closest = cp;
-              found.triangle = t;
-              found.bary[0] = bc[0];
-              found.bary[1] = bc[1];
-              found.bary[2] = bc[2];
-            }
-          }
-        }
-    if (found.triangle < 0) continue;
-    // Pseudonormal of the closest feature: face interior, edge (the two faces sharing it) or vertex.
-    const int t = found.triangle;
-    constexpr double kFeature = 1e-9;
-    int zeros = 0, zeroAt = -1, oneAt = -1;
-    for (int k = 0; k < 3; ++k) {
-      if (found.bary[k] < kFeature) {
-        ++zeros;
-        zeroAt = k;
-      }
-      if (found.bary[k] > 1.0 - kFeature) oneAt = k;
-    }
-    Eigen::Vector3d pseudo = faceNormal(t);
-    if (oneAt >= 0) {
-      pseudo = vertexNormal(tri_(t, oneAt), true);
-    } else if (zeros == 1) {
-      const int u = tri_(t, (zeroAt + 1) % 3), w = tri_(t, (zeroAt + 2) % 3);
-      auto e = edgeFaces_.find(edgeKey(u, w));
-      if (e != edgeFaces_.end()) pseudo = faceNormal(e->second[0]) + faceNormal(e->second[1]);
-    }
-    if (!(pseudo.norm() > 1e-12)) continue;
-    // Second opinion from the smooth (interpolated vertex) normal: where the two disagree on the side, the partner's
-    // surface is folded or stretched there and the contact is ambiguous; it is skipped rather than pushed the wrong way.
-    Eigen::Vector3d smooth = Eigen::Vector3d::Zero();
-    if (insideTest)
-      for (int k = 0; k < 3; ++k) smooth += found.bary[k] * vertexNormal(tri_(t, k), false);
-    // Contact normal: the direction from the closest point to the vertex, signed by the pseudonormal (outward of B).
-    const Eigen::Vector3d off = q - closest;
-    const double dist = off.norm();
-    if (dist > 1e-9 * (1.0 + q.norm())) {
-      // Without the inside test every vertex is taken to be outside (true when each step starts collision-free):
-      // the normal points from B to the vertex and a correction can never push a vertex through B.
-      const bool inside = insideTest && off.dot(pseudo) < 0 && off.dot(smooth) < 0;
-      found.normal = (inside ? -1.0 : 1.0) * off / dist;
-    } else {
+    const SurfacePoint s = surface_->closest(p, q, reach);
+    if (s.triangle < 0) continue;
+    Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero()};
+    // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
+    // taken to be outside (true when each step starts collision-free), so a correction can never push it through B.
+    // With it, the side comes from B's pseudonormal, and only where B's smooth normal agrees: where they disagree
+    // B is folded or stretched there and the vertex is taken to be outside rather than pushed the wrong way.
+    const Eigen::Vector3d off = q - s.point;
+    if (s.distance > 1e-9 * (1.0 + q.norm())) {
+      const bool inside = insideTest && off.dot(surface_->pseudonormal(p, s)) < 0 && off.dot(surface_->smoothNormal(p, s)) < 0;
+      found.normal = (inside ? -1.0 : 1.0) * off / s.distance;
+    } else {  // on the surface: B's outward side
+      const Eigen::Vector3d pseudo = surface_->pseudonormal(p, s);
+      if (!(pseudo.norm() > 1e-12)) continue;
       found.normal = pseudo.normalized();
     }
     contacts_.push_back(found);
@@ -459,7 +331,8 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
 void CollisionConstraints::project(Points& p, const Eigen::VectorXd& w) {
   for (const Contact& c : contacts_) {
     const int a = firstA_ + c.vertex;
-    const int i0 = tri_(c.triangle, 0), i1 = tri_(c.triangle, 1), i2 = tri_(c.triangle, 2);
+    const Triangles& tri = surface_->triangles();
+    const int i0 = tri(c.triangle, 0), i1 = tri(c.triangle, 1), i2 = tri(c.triangle, 2);
     const Eigen::Vector3d pi[3] = {p.row(i0).transpose(), p.row(i1).transpose(), p.row(i2).transpose()};
     const double wi[3] = {w[i0], w[i1], w[i2]};
     Eigen::Vector3d dp, dpi[3];
@@ -474,11 +347,11 @@ void CollisionConstraints::project(Points& p, const Eigen::VectorXd& w) {
 double CollisionConstraints::maxPenetration(const Points& p) const {
   double worst = 0;
   for (const Contact& c : contacts_) {
-    const Eigen::Vector3d pbar = c.bary[0] * p.row(tri_(c.triangle, 0)).transpose() +
-                                 c.bary[1] * p.row(tri_(c.triangle, 1)).transpose() +
-                                 c.bary[2] * p.row(tri_(c.triangle, 2)).transpose();
-    const double pen = (pbar - p.row(firstA_ + c.vertex).transpose()).dot(c.normal);
-    worst = std::max(worst, pen);
+    const Triangles& tri = surface_->triangles();
+    const Eigen::Vector3d pbar = c.bary[0] * p.row(tri(c.triangle, 0)).transpose() +
+                                 c.bary[1] * p.row(tri(c.triangle, 1)).transpose() +
+                                 c.bary[2] * p.row(tri(c.triangle, 2)).transpose();
+    worst = std::max(worst, (pbar - p.row(firstA_ + c.vertex).transpose()).dot(c.normal));
   }
   return worst;
 }

@@ -326,24 +326,29 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       if (st.obj->kind == ObjectKind::Bone) invMass.segment(st.first, st.current.vertexCount()).setConstant(1.0 / opts.boneMassRatio);
     // Collision sets, only for declared pairs: each direction is A's vertices against B's surface (fan triangles of
     // B's simplex faces, whose corners are B's particles). Projected last in a step, so contacts have the last word.
-    std::vector<std::unique_ptr<CollisionConstraints>> collide;
+    // Each partner surface is set up once per level and its grid rebuilt once per step, shared by the sets against it.
+    std::vector<std::unique_ptr<CollisionConstraints>> collide;  // pair k: [2k] = first against second, [2k+1] back
+    std::map<size_t, std::shared_ptr<CollisionSurface>> surfaces;
     if (opts.collisions && !scene.collisions.empty()) {
-      std::map<size_t, Triangles> fans;
-      auto fanOf = [&](size_t i) -> const Triangles& {
-        auto it = fans.find(i);
-        if (it == fans.end()) {
+      auto surfaceOf = [&](size_t i) {
+        auto it = surfaces.find(i);
+        if (it == surfaces.end()) {
           Triangles t = simplexFanTriangles(objs[i].current);
           t.array() += objs[i].first;
-          it = fans.emplace(i, std::move(t)).first;
+          it = surfaces.emplace(i, std::make_shared<CollisionSurface>(t, opts.collisionGapMm + proximity)).first;
         }
         return it->second;
       };
       for (const auto& [a, b] : scene.collisions)
         for (auto [u, v] : {std::pair<size_t, size_t>(a, b), std::pair<size_t, size_t>(b, a)})
-          collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(), fanOf(v),
-                                                                   opts.collisionGapMm, proximity, opts.collisionFriction));
+          collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(),
+                                                                   surfaceOf(v), opts.collisionGapMm, proximity,
+                                                                   opts.collisionFriction));
       res.collisionSetsBuilt += static_cast<int>(collide.size());
     }
+    auto updateSurfaces = [&](const Points& p) {
+      for (auto& kv : surfaces) kv.second->update(p);
+    };
     for (auto& c : collide) sets.push_back(c.get());
     PbdSolver solver(opts.pbd);
     solver.prepare(x, invMass);
@@ -369,6 +374,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       }
       {
         const auto tc = Clock::now();
+        updateSurfaces(solver.positions());
         for (auto& c : collide) c->detect(solver.positions(), s == 0);
         collisionDetectSeconds += since(tc);
       }
@@ -389,12 +395,16 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       const auto tc = Clock::now();
       Points p = solver.positions();
       for (int sweep = 0; sweep < opts.collisionFinalSweeps; ++sweep)
-        for (auto& c : collide) {
-          c->detect(p, sweep == 0);
-          c->project(p, solver.inverseMass());
+        for (size_t k = 0; k < collide.size(); ++k) {
+          // Positions change with every projection here: the partner's grid is rebuilt before each detection.
+          const auto& [a, b] = scene.collisions[k / 2];
+          surfaces.at(static_cast<size_t>(k % 2 == 0 ? b : a))->update(p);
+          collide[k]->detect(p, sweep == 0);
+          collide[k]->project(p, solver.inverseMass());
         }
       solver.reset(p, solver.inverseMass());
       // Penetration per declared pair (both directions), measured on the final positions.
+      updateSurfaces(p);
       for (size_t k = 0; k < scene.collisions.size(); ++k) {
         double worst = 0;
         for (int d = 0; d < 2; ++d) {

@@ -2,12 +2,13 @@
 /// Constraints in two layers (STYLE.md): pure kernels that compute corrections for a few points, and constraint
 /// sets that own indices, reference parameters and stiffness. Every set projects positions (PBD, DESIGN-NOTES §2,
 /// §6); the force-based schemes consume the same sets later.
+#include <memory>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "msk/core/collision_surface.h"
 #include "msk/core/simplex_mesh.h"
 
 namespace msk {
@@ -108,14 +109,18 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
                          const Eigen::Vector3d& normal, double gap, double friction, double w, const double wi[3],
                          Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]);
 
-/// Vertex–surface collisions of object A's vertices against object B's triangles (one direction; declare the
-/// reverse set too). Contacts are detected once per step (detect()) with a uniform grid over B's triangles: the
-/// closest point of B within gap + proximity, and the contact normal along the direction from that point to the
-/// vertex, signed (see detect()). Projection then uses the current positions and that normal.
+/// Vertex–surface collisions of object A's vertices against a partner surface B (one direction; declare the reverse
+/// set too). Contacts are detected once per step (detect()): the closest point of B within gap + proximity, and the
+/// contact normal along the direction from that point to the vertex, signed (see detect()). Projection then uses the
+/// current positions and that normal.
 class CollisionConstraints : public ConstraintSet {
  public:
-  /// `vertexCount` vertices of A start at particle `firstA`; `triangles` index B's particles (global indices).
-  /// gap ≥ 0 and proximity > 0 in mm, friction μ ∈ [0, 1] (ParameterError otherwise).
+  /// `vertexCount` vertices of A start at particle `firstA`; `surfaceB` is shared with the other sets against B and
+  /// updated by its owner once per step, before detect(); its reach must cover gap + proximity. gap ≥ 0 and
+  /// proximity > 0 in mm, friction μ ∈ [0, 1] (ParameterError otherwise).
+  CollisionConstraints(int firstA, int vertexCount, std::shared_ptr<CollisionSurface> surfaceB, double gapMm,
+                       double proximityMm, double friction);
+  /// As above with a surface of its own over `trianglesB` (global particle indices), updated by every detect().
   CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm, double proximityMm,
                        double friction);
   std::string name() const override { return "collision"; }
@@ -134,22 +139,11 @@ class CollisionConstraints : public ConstraintSet {
   struct Contact {
     int vertex, triangle;
     double bary[3];
-    Eigen::Vector3d normal;  ///< B's outward normal at the closest point (interpolated vertex normals), fixed per step
-  };
-  static long long edgeKey(int a, int b) {
-    return a < b ? (static_cast<long long>(a) << 32) | static_cast<unsigned>(b)
-                 : (static_cast<long long>(b) << 32) | static_cast<unsigned>(a);
-  }
-  struct EdgePair {
-    int f[2] = {-1, -1};
-    int& operator[](int i) { return f[i]; }
-    int operator[](int i) const { return f[i]; }
+    Eigen::Vector3d normal;  ///< from B toward the vertex's allowed side, fixed at detection
   };
   int firstA_, count_;
-  Triangles tri_;
-  int idxLo_ = 0, idxHi_ = -1;  ///< range of B's particle indices
-  std::vector<int> vtStart_, vtTri_;  ///< B's vertex → incident triangles (CSR, vertex i at i − idxLo_)
-  std::unordered_map<long long, EdgePair> edgeFaces_;
+  std::shared_ptr<CollisionSurface> surface_;
+  bool ownsSurface_;
   double gap_, proximity_, friction_;
   std::vector<Contact> contacts_;
 };

@@ -1,0 +1,60 @@
+#pragma once
+/// The partner side of vertex–surface collisions (DESIGN-NOTES §3): a closed triangulated surface whose corners are
+/// particles of a stacked system, with its connectivity set up once and a uniform grid over its triangles rebuilt
+/// once per step, shared by every collision set that tests vertices against it.
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/triangle_mesh.h"
+
+namespace msk {
+
+/// Closest point of a surface to a query vertex.
+struct SurfacePoint {
+  int triangle = -1;                  ///< −1 if nothing lies within reach
+  double bary[3] = {0, 0, 0};         ///< barycentric weights on the triangle's corners (sum 1)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< the closest point, mm
+  double distance = 0;                ///< |point − query|, mm
+};
+
+/// A partner surface: triangles over global particle indices, queried for closest points and side normals.
+class CollisionSurface {
+ public:
+  /// `triangles` (outward, closed) index particles of the stacked system; queries reach `reachMm` (> 0).
+  CollisionSurface(const Triangles& triangles, double reachMm);
+  /// Rebuilds the grid over the triangles at positions `p` (call once per step, before the queries).
+  void update(const Points& p);
+  /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update().
+  SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance) const;
+  /// Pseudonormal of the closest feature of `s` (face, edge: sum of its two faces, vertex: angle-weighted), not unit:
+  /// its sign against q − point is exact for a closed, non-self-intersecting surface (Bærentzen & Aanæs 2005).
+  Eigen::Vector3d pseudonormal(const Points& p, const SurfacePoint& s) const;
+  /// Smooth normal at `s`: the corners' (unweighted) vertex normals interpolated with the barycentric weights.
+  Eigen::Vector3d smoothNormal(const Points& p, const SurfacePoint& s) const;
+  /// The triangles (global particle indices).
+  const Triangles& triangles() const { return tri_; }
+  /// Largest query distance the grid supports, mm.
+  double reach() const { return reach_; }
+
+ private:
+  Eigen::Vector3d faceNormal(const Points& p, int t) const;
+  Eigen::Vector3d vertexNormal(const Points& p, int i, bool angleWeighted) const;
+  size_t cellIndex(int x, int y, int z) const;
+  Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
+
+  Triangles tri_;
+  double reach_;
+  int idxLo_ = 0, idxHi_ = -1;            ///< range of the surface's particle indices
+  std::vector<int> vtStart_, vtTri_;      ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
+  std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
+  // Per-step grid (update()).
+  Points lo_, hi_;                        ///< triangle bounding boxes
+  Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();
+  double cell_ = 1;
+  Eigen::Vector3i dims_ = Eigen::Vector3i::Zero();
+  std::vector<int> start_, items_;        ///< cell → triangles (CSR)
+};
+
+}  // namespace msk
