@@ -12,22 +12,28 @@
 #include "msk/segmentation/template_builder.h"
 #include "test_support.h"
 
+namespace {
+/// Mid-sagittal plane: x (RAS mm) of the sacrum's centroid (label 25), a midline landmark; no femur label is used.
+double midSagittalX(const msk::LabelMap& labels) {
+  double sx = 0, n = 0;
+  for (int k = 0; k < labels.grid.dims[2]; ++k)
+    for (int j = 0; j < labels.grid.dims[1]; ++j)
+      for (int i = 0; i < labels.grid.dims[0]; ++i)
+        if (labels.at(i, j, k) == 25) {
+          sx += labels.grid.toWorld(Eigen::Vector3d(i, j, k)).x();
+          n += 1;
+        }
+  return sx / n;
+}
+}  // namespace
+
 TEST(RealCtFemur, MirroredContralateralTemplate) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
 
-  // Mid-sagittal plane: x of the sacrum's centroid (label 25), a midline landmark; the femur labels are not used.
-  double sx = 0, n = 0;
-  for (int k = 0; k < ct.grid.dims[2]; ++k)
-    for (int j = 0; j < ct.grid.dims[1]; ++j)
-      for (int i = 0; i < ct.grid.dims[0]; ++i)
-        if (labels.at(i, j, k) == 25) {
-          sx += ct.grid.toWorld(Eigen::Vector3d(i, j, k)).x();
-          n += 1;
-        }
-  const double midX = sx / n;
+  const double midX = midSagittalX(labels);
   const msk::TriangleMesh left = msk::templateFromLabels(labels, 75, msk::TemplateOptions{});
   const msk::TriangleMesh templ = msk::mirrorMesh(left, Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
 
@@ -61,15 +67,7 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
-  double sx = 0, n = 0;
-  for (int k = 0; k < ct.grid.dims[2]; ++k)
-    for (int j = 0; j < ct.grid.dims[1]; ++j)
-      for (int i = 0; i < ct.grid.dims[0]; ++i)
-        if (labels.at(i, j, k) == 25) {
-          sx += ct.grid.toWorld(Eigen::Vector3d(i, j, k)).x();
-          n += 1;
-        }
-  const double midX = sx / n;
+  const double midX = midSagittalX(labels);
   msk::Scene scene;
   for (auto [name, label, from] : {std::tuple{"femur_right", 76, 75}, std::tuple{"hip_right", 78, 77}}) {
     msk::SceneObject o;
