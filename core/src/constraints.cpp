@@ -1,6 +1,7 @@
 #include "msk/core/constraints.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 #include <Eigen/Dense>
@@ -25,6 +26,11 @@ bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eig
 }
 }  // namespace
 
+std::uint64_t ConstraintSet::newUid() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1);
+}
+
 bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double hOverR, Eigen::Vector3d& target) {
   double r = 0;
   Eigen::Vector3d n;
@@ -33,10 +39,11 @@ bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], dou
   return target.allFinite();
 }
 
-bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
-                               double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
-                               Eigen::Vector3d dpi[3], bool* torqueFree) {
-  const Eigen::Vector3d d = target - p;
+namespace {
+/// Reaction weights λ of the 2-simplex internal constraint (method 2) for the correction d = P̃ − P and the
+/// denominator 1/m̄ = w + Σ ε̃i λi wi; falls back to λ = ε̃ where no torque-free split exists. False if degenerate.
+bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& d, double w,
+                   const double wi[3], const double eps[3], Eigen::Vector3d& lambda, double& denom, bool& split) {
   if (!d.allFinite()) return false;
   if (w <= 0 && wi[0] <= 0 && wi[1] <= 0 && wi[2] <= 0) return false;
   const Eigen::Vector3d a1 = pi[0] - p, a2 = pi[1] - p, a3 = pi[2] - p;
@@ -44,8 +51,7 @@ bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
   // normalised weights stay finite as P approaches its neighbours' plane (they tend to εi there).
   const Eigen::Vector3d mu(d.dot(a2.cross(a3)), d.dot(a3.cross(a1)), d.dot(a1.cross(a2)));
   const double sumMu = mu.sum();
-  Eigen::Vector3d lambda;
-  bool split = false;
+  split = false;
   if (std::fabs(sumMu) > 0.05 * mu.cwiseAbs().sum() && std::fabs(sumMu) > 0) {
     lambda = mu / sumMu;
     split = true;
@@ -56,13 +62,25 @@ bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
   }
   // The reduced mass m̄ = 1/(w + Σ ε̃i λi wi) must not exceed the plain one: a denominator below w (negative
   // λ-weighted reactions) or extreme λ makes the linearised step overshoot, and repeated projection diverges.
-  double denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
+  denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
   if (!(denom >= w) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
     lambda << eps[0], eps[1], eps[2];
     denom = w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
     if (!(denom > 0)) return false;
     split = false;
   }
+  return true;
+}
+}  // namespace
+
+bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
+                               double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
+                               Eigen::Vector3d dpi[3], bool* torqueFree) {
+  const Eigen::Vector3d d = target - p;
+  Eigen::Vector3d lambda;
+  double denom = 0;
+  bool split = false;
+  if (!internalSplit(p, pi, d, w, wi, eps, lambda, denom, split)) return false;
   if (torqueFree) *torqueFree = split;
   const double mbar = gamma / denom;
   dp = (w * mbar) * d;
@@ -109,6 +127,21 @@ SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& refere
   }
 }
 
+Eigen::VectorXd SimplexInternalConstraints::smoothingHeights(const Eigen::Ref<const Points>& p) const {
+  // Current scale-free heights, then their neighbourhood means (one Jacobi pass per projection).
+  const int n = static_cast<int>(nb_.rows());
+  Eigen::VectorXd hr(n);
+  for (int v = 0; v < n; ++v) {
+    Eigen::Vector3d pi[3] = {p.row(nb_(v, 0)), p.row(nb_(v, 1)), p.row(nb_(v, 2))};
+    double r = 0;
+    Eigen::Vector3d nrm;
+    hr[v] = triangleFrame(pi[0], pi[1], pi[2], r, nrm) ? (p.row(v).transpose() - pi[0]).dot(nrm) / r : 0.0;
+  }
+  Eigen::VectorXd smoothH(n);
+  for (int v = 0; v < n; ++v) smoothH[v] = (hr[nb_(v, 0)] + hr[nb_(v, 1)] + hr[nb_(v, 2)]) / 3.0;
+  return smoothH;
+}
+
 void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
   const int n = static_cast<int>(nb_.rows());
   MSK_ASSERT(pAll.rows() >= first_ + n && wAll.size() == pAll.rows(), "internal constraints: size mismatch");
@@ -116,18 +149,7 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
   const auto w = wAll.segment(first_, n);
   skipped_ = 0;
   Eigen::VectorXd smoothH;
-  if (mode_ == InternalMode::Smoothing) {
-    // Current scale-free heights, then their neighbourhood means (one Jacobi pass per projection).
-    Eigen::VectorXd hr(n);
-    for (int v = 0; v < n; ++v) {
-      Eigen::Vector3d pi[3] = {p.row(nb_(v, 0)), p.row(nb_(v, 1)), p.row(nb_(v, 2))};
-      double r = 0;
-      Eigen::Vector3d nrm;
-      hr[v] = triangleFrame(pi[0], pi[1], pi[2], r, nrm) ? (p.row(v).transpose() - pi[0]).dot(nrm) / r : 0.0;
-    }
-    smoothH.resize(n);
-    for (int v = 0; v < n; ++v) smoothH[v] = (hr[nb_(v, 0)] + hr[nb_(v, 1)] + hr[nb_(v, 2)]) / 3.0;
-  }
+  if (mode_ == InternalMode::Smoothing) smoothH = smoothingHeights(p);
   static const double third[3] = {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
   for (int v = 0; v < n; ++v) {
     const int i0 = nb_(v, 0), i1 = nb_(v, 1), i2 = nb_(v, 2);
@@ -159,12 +181,57 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
   }
 }
 
+int SimplexInternalConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
+  index[0] = first_ + r;
+  for (int i = 0; i < 3; ++i) index[i + 1] = first_ + nb_(r, i);
+  return 4;
+}
+
+void SimplexInternalConstraints::beginRows(const Points& pAll, const Eigen::VectorXd& wAll) {
+  const int n = static_cast<int>(nb_.rows());
+  MSK_ASSERT(pAll.rows() >= first_ + n && wAll.size() == pAll.rows(), "internal constraints: size mismatch");
+  if (mode_ == InternalMode::Smoothing) rowHeights_ = smoothingHeights(pAll.middleRows(first_, n));
+}
+
+bool SimplexInternalConstraints::row(int r, const Points& pAll, const Eigen::VectorXd& wAll, ConstraintRow& out) const {
+  const int idx[4] = {first_ + r, first_ + nb_(r, 0), first_ + nb_(r, 1), first_ + nb_(r, 2)};
+  const Eigen::Vector3d p = pAll.row(idx[0]).transpose();
+  const Eigen::Vector3d pi[3] = {pAll.row(idx[1]).transpose(), pAll.row(idx[2]).transpose(),
+                                 pAll.row(idx[3]).transpose()};
+  double eps[3] = {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
+  if (mode_ == InternalMode::ShapeMemory)
+    for (int i = 0; i < 3; ++i) eps[i] = eps_(r, i);
+  const double hr = mode_ == InternalMode::Smoothing ? rowHeights_[r] : hOverR_[r];
+  Eigen::Vector3d target;
+  if (!simplexShapeTarget(pi, eps, hr, target)) return false;
+  const double wi[3] = {wAll[idx[1]], wAll[idx[2]], wAll[idx[3]]};
+  const Eigen::Vector3d d = target - p;
+  Eigen::Vector3d lambda;
+  double denom = 0;
+  bool split = false;
+  if (!internalSplit(p, pi, d, wAll[idx[0]], wi, eps, lambda, denom, split)) return false;
+  out.count = 4;
+  out.c = -d;  // C = P − P̃
+  out.gamma = gamma_;
+  out.direction = false;
+  out.index[0] = idx[0];
+  out.grad[0] = 1.0;
+  out.react[0] = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    out.index[i + 1] = idx[i + 1];
+    out.grad[i + 1] = -eps[i];
+    out.react[i + 1] = -lambda[i];
+  }
+  return true;
+}
+
 // ------------------------------------------------------------------------------------------------ targets
 
 TargetConstraints::TargetConstraints(double gamma) : gamma_(gamma) { checkUnitInterval("image stiffness", gamma); }
 
 void TargetConstraints::setTargets(const Points& targets, const Eigen::VectorXd& weights) {
   MSK_ASSERT(targets.rows() == weights.size(), "targets and weights differ in size");
+  if (targets.rows() != targets_.rows()) rowLayoutChanged();
   targets_ = targets;
   weights_ = weights.cwiseMax(0.0).cwiseMin(1.0);
 }
@@ -181,6 +248,24 @@ void TargetConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
     if (targetCorrection(p.row(v).transpose(), targets_.row(v).transpose(), w[v], gamma_ * weights_[v], dp))
       p.row(v) += dp.transpose();
   }
+}
+
+int TargetConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
+  index[0] = first_ + r;
+  return 1;
+}
+
+bool TargetConstraints::row(int r, const Points& pAll, const Eigen::VectorXd& wAll, ConstraintRow& out) const {
+  const int i = first_ + r;
+  if (!(weights_[r] > 0) || !(wAll[i] > 0)) return false;
+  out.count = 1;
+  out.index[0] = i;
+  out.grad[0] = 1.0;
+  out.react[0] = 1.0;
+  out.c = (pAll.row(i) - targets_.row(r)).transpose();
+  out.gamma = gamma_ * weights_[r];
+  out.direction = true;
+  return out.c.allFinite();
 }
 
 // ------------------------------------------------------------------------------------------------ global prior
@@ -230,17 +315,23 @@ void ShapeMatchingConstraint::setLambda(double lambda) {
   lambda_ = lambda;
 }
 
-void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll) {
+void ShapeMatchingConstraint::fit(const Points& pAll, const Eigen::VectorXd& wAll) {
   const int n = static_cast<int>(ref_.rows());
-  MSK_ASSERT(pAll.rows() >= first_ + n, "global prior: size mismatch");
-  if (lambda_ <= 0) return;
-  auto p = pAll.middleRows(first_, n);
   const Eigen::VectorXd w = wAll.segment(first_, n);
   // Mass weights: fixed particles (w = 0) weigh like a very heavy particle.
   const double wmax = w.maxCoeff();
   Eigen::VectorXd mass(w.size());
   for (int i = 0; i < w.size(); ++i) mass[i] = w[i] > 0 ? 1.0 / w[i] : 1e6 / std::max(wmax, 1e-300);
-  last_ = fitTransform(ref_, Points(p), mass, transform_);
+  last_ = fitTransform(ref_, Points(pAll.middleRows(first_, n)), mass, transform_);
+}
+
+void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll) {
+  const int n = static_cast<int>(ref_.rows());
+  MSK_ASSERT(pAll.rows() >= first_ + n, "global prior: size mismatch");
+  if (lambda_ <= 0) return;
+  auto p = pAll.middleRows(first_, n);
+  const auto w = wAll.segment(first_, n);
+  fit(pAll, wAll);
   const Eigen::Matrix3d m = last_.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = last_.topRightCorner<3, 1>();
   for (int i = 0; i < p.rows(); ++i) {
@@ -248,6 +339,30 @@ void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll)
     const Eigen::Vector3d goal = m * ref_.row(i).transpose() + t;
     p.row(i) += lambda_ * (goal.transpose() - p.row(i));
   }
+}
+
+int ShapeMatchingConstraint::rowParticles(int r, int index[kMaxRowParticles]) const {
+  index[0] = first_ + r;
+  return 1;
+}
+
+void ShapeMatchingConstraint::beginRows(const Points& pAll, const Eigen::VectorXd& wAll) {
+  MSK_ASSERT(pAll.rows() >= first_ + ref_.rows() && wAll.size() == pAll.rows(), "global prior: size mismatch");
+  if (lambda_ > 0) fit(pAll, wAll);
+}
+
+bool ShapeMatchingConstraint::row(int r, const Points& pAll, const Eigen::VectorXd& wAll, ConstraintRow& out) const {
+  const int i = first_ + r;
+  if (!(lambda_ > 0) || !(wAll[i] > 0)) return false;
+  const Eigen::Vector3d goal = last_.topLeftCorner<3, 3>() * ref_.row(r).transpose() + last_.topRightCorner<3, 1>();
+  out.count = 1;
+  out.index[0] = i;
+  out.grad[0] = 1.0;
+  out.react[0] = 1.0;
+  out.c = pAll.row(i).transpose() - goal;
+  out.gamma = lambda_;
+  out.direction = false;
+  return out.c.allFinite();
 }
 
 }  // namespace msk

@@ -32,19 +32,19 @@ void PbdSolver::reset(const Points& positions, const Eigen::VectorXd& inverseMas
   v_ = Points::Zero(positions.rows(), 3);
 }
 
-void PbdSolver::dampVelocities() {
+void dampTowardRigidMotion(const Points& x, const Eigen::VectorXd& w, double damping, double drag, Points& v) {
   // Momentum-preserving damping (PBD survey §4.1.2, Müller et al. 2007): pull each velocity toward the rigid-body
-  // velocity field v_cm + ω × r of the whole system, which leaves linear and angular momentum unchanged.
-  const int n = static_cast<int>(x_.rows());
-  if (opts_.damping > 0 && n > 0) {
+  // velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum unchanged.
+  const int n = static_cast<int>(x.rows());
+  if (damping > 0 && n > 0) {
     double msum = 0;
     Eigen::Vector3d xcm = Eigen::Vector3d::Zero(), vcm = Eigen::Vector3d::Zero();
     for (int i = 0; i < n; ++i) {
-      if (w_[i] <= 0) continue;
-      const double m = 1.0 / w_[i];
+      if (w[i] <= 0) continue;
+      const double m = 1.0 / w[i];
       msum += m;
-      xcm += m * x_.row(i).transpose();
-      vcm += m * v_.row(i).transpose();
+      xcm += m * x.row(i).transpose();
+      vcm += m * v.row(i).transpose();
     }
     if (msum > 0) {
       xcm /= msum;
@@ -52,24 +52,24 @@ void PbdSolver::dampVelocities() {
       Eigen::Vector3d l = Eigen::Vector3d::Zero();
       Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
       for (int i = 0; i < n; ++i) {
-        if (w_[i] <= 0) continue;
-        const double m = 1.0 / w_[i];
-        const Eigen::Vector3d r = x_.row(i).transpose() - xcm;
-        l += m * r.cross(v_.row(i).transpose());
+        if (w[i] <= 0) continue;
+        const double m = 1.0 / w[i];
+        const Eigen::Vector3d r = x.row(i).transpose() - xcm;
+        l += m * r.cross(v.row(i).transpose());
         inertia += m * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
       }
       Eigen::Vector3d omega = Eigen::Vector3d::Zero();
       Eigen::FullPivLU<Eigen::Matrix3d> lu(inertia);
       if (lu.isInvertible()) omega = lu.solve(l);
       for (int i = 0; i < n; ++i) {
-        if (w_[i] <= 0) continue;
-        const Eigen::Vector3d r = x_.row(i).transpose() - xcm;
+        if (w[i] <= 0) continue;
+        const Eigen::Vector3d r = x.row(i).transpose() - xcm;
         const Eigen::Vector3d rigid = vcm + omega.cross(r);
-        v_.row(i) += opts_.damping * (rigid.transpose() - v_.row(i));
+        v.row(i) += damping * (rigid.transpose() - v.row(i));
       }
     }
   }
-  if (opts_.drag > 0) v_ *= (1.0 - opts_.drag);
+  if (drag > 0) v *= (1.0 - drag);
 }
 
 double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
@@ -89,7 +89,7 @@ double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
   const double maxDisp = (p_ - x_).rowwise().norm().maxCoeff();
   v_ = (p_ - x_) / dt;
   x_.swap(p_);
-  dampVelocities();
+  dampTowardRigidMotion(x_, w_, opts_.damping, opts_.drag, v_);
   ++steps_;
   return maxDisp;
 }

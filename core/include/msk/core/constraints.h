@@ -2,6 +2,7 @@
 /// Constraints in two layers (STYLE.md): pure kernels that compute corrections for a few points, and constraint
 /// sets that own indices, reference parameters and stiffness. Every set projects positions (PBD, DESIGN-NOTES §2,
 /// §6); the force-based schemes consume the same sets later.
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -37,9 +38,35 @@ bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, d
 bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double heightOverRadius,
                         Eigen::Vector3d& target);
 
+// ------------------------------------------------------------------------------------------------ rows
+
+/// Most particles one constraint row touches (a 3-simplex vertex and its 4 neighbours).
+constexpr int kMaxRowParticles = 5;
+
+/// One constraint linearised at the current positions, the common currency of every scheme (solver.h). It is a
+/// target-position constraint with a 3-vector residual C (mm) and scalar blocks: ∂C/∂Pj = gj·I (`grad`), and the
+/// correction is shared as ΔPj = wj rj Δλ (`react`), with generalised inverse mass W = Σ gj rj wj. Then
+/// - PBD (Gauss–Seidel, Jacobi): Δλ = −γ C / W, i.e. the kernels of this file (γ = 1 removes C to first order);
+/// - XPBD: Δλ = (−C − α̃ λ) / (W + α̃), α̃ = 1/(k γ dt²);
+/// - forces (DESIGN-NOTES §2, α = γ m̄ dt⁻², m̄ = 1/W): Fj = −rj α C, so that ΔPj = wj Fj dt² is the PBD step;
+///   derivatives ∂Fj/∂Pl = −α gj gl S with S = I (target position) or k I + (1 − k) uuᵀ (target direction `direction`,
+///   u = C/|C|); the non-symmetric 2-simplex blocks (r ≠ g) are replaced by these symmetric ones (Table 4.25).
+/// Σ rj = 0 over a row's particles means its corrections and forces carry no linear momentum.
+struct ConstraintRow {
+  int count = 0;                     ///< particles used, ≤ kMaxRowParticles
+  int index[kMaxRowParticles];       ///< global particle indices
+  double grad[kMaxRowParticles];     ///< gj, ∂C/∂Pj = gj I
+  double react[kMaxRowParticles];    ///< rj, ΔPj = wj rj Δλ
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();  ///< residual C, mm
+  double gamma = 1.0;                ///< user stiffness of this constraint, γ ∈ [0, 1] (set stiffness × weight)
+  bool direction = false;            ///< target direction (anisotropic derivative) rather than target position
+};
+
 // ------------------------------------------------------------------------------------------------ sets
 
-/// A family of constraints projected together (sequential Gauss–Seidel order within the set).
+/// A family of constraints projected together (sequential Gauss–Seidel order within the set). A set may also expose
+/// its constraints one by one as rows (ConstraintRow), which lets the solvers of solver.h run it in coloured, Jacobi,
+/// XPBD or force-based form; a set that does not (rowCount() = 0) is run through project() by every scheme.
 class ConstraintSet {
  public:
   virtual ~ConstraintSet() = default;
@@ -48,12 +75,50 @@ class ConstraintSet {
   /// Projects every constraint once on positions `p` (#V×3) with inverse masses `w`.
   virtual void project(Points& p, const Eigen::VectorXd& w) = 0;
   /// Index of the set's first particle in the solver's arrays (several objects are stacked in one system).
-  void setFirstParticle(int first) { first_ = first; }
+  void setFirstParticle(int first) {
+    first_ = first;
+    ++rowLayout_;
+  }
   /// See setFirstParticle().
   int firstParticle() const { return first_; }
 
+  /// Number of constraints exposed as rows; 0 (the default) = only project() is available.
+  virtual int rowCount() const { return 0; }
+  /// Global particle indices row `r` touches (at most kMaxRowParticles, written to `index`); returns their number.
+  /// Must not depend on positions: solvers colour the rows with it. row() reads and writes no other particle.
+  virtual int rowParticles(int r, int index[kMaxRowParticles]) const {
+    (void)r;
+    (void)index;
+    return 0;
+  }
+  /// Prepares a pass over the rows at positions `p` (e.g. the global fit, smoothing heights); called before row().
+  virtual void beginRows(const Points& p, const Eigen::VectorXd& w) {
+    (void)p;
+    (void)w;
+  }
+  /// Linearises row `r` at positions `p`; false if it is inactive or degenerate (skipped). Thread-safe for rows that
+  /// share no particle.
+  virtual bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
+    (void)r;
+    (void)p;
+    (void)w;
+    (void)out;
+    return false;
+  }
+  /// Changes whenever the particles of the rows change (a solver then recolours them).
+  std::uint64_t rowLayout() const { return rowLayout_; }
+  /// Identity of this set object (unique per construction), so solvers can cache its colouring.
+  std::uint64_t uid() const { return uid_; }
+
  protected:
+  /// Call when the rows' particles change (other than through setFirstParticle()).
+  void rowLayoutChanged() { ++rowLayout_; }
   int first_ = 0;
+
+ private:
+  static std::uint64_t newUid();
+  std::uint64_t rowLayout_ = 0;
+  std::uint64_t uid_ = newUid();
 };
 
 /// How the 2-simplex internal constraint chooses its target.
@@ -70,15 +135,23 @@ class SimplexInternalConstraints : public ConstraintSet {
   SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode = InternalMode::ShapeMemory);
   std::string name() const override { return "simplex-internal"; }
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// One row per vertex: C = P − P̃, g = (1, −ε̃i), r = (1, −λi) (method 2 split, as simplexInternalCorrection()).
+  int rowCount() const override { return static_cast<int>(nb_.rows()); }
+  int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  void beginRows(const Points& p, const Eigen::VectorXd& w) override;
+  bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
   /// User stiffness γ.
   double gamma() const { return gamma_; }
   /// Number of projections skipped as degenerate in the last pass.
   int skipped() const { return skipped_; }
 
  private:
+  /// Smoothing mode: the neighbourhood means of the current scale-free heights of the set's vertices `p` (#n×3).
+  Eigen::VectorXd smoothingHeights(const Eigen::Ref<const Points>& p) const;
   NeighborTable nb_;
   Eigen::MatrixX3d eps_;
   Eigen::VectorXd hOverR_;
+  Eigen::VectorXd rowHeights_;  ///< smoothing heights of the current row pass (beginRows())
   double gamma_;
   InternalMode mode_;
   int skipped_ = 0;
@@ -93,6 +166,10 @@ class TargetConstraints : public ConstraintSet {
   /// Sets the targets (#V×3) and per-vertex weights (#V, clamped to [0, 1]).
   void setTargets(const Points& targets, const Eigen::VectorXd& weights);
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// One row per vertex with weight > 0: C = P − T, g = r = 1, γ·weight, a target direction (anisotropic).
+  int rowCount() const override { return static_cast<int>(targets_.rows()); }
+  int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
 
  private:
   double gamma_;
@@ -160,6 +237,11 @@ class ShapeMatchingConstraint : public ConstraintSet {
   ShapeMatchingConstraint(const Points& reference, PriorTransform transform, double lambda);
   std::string name() const override { return "global-prior"; }
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// One row per vertex: C = P − goal, g = r = 1, γ = λ, the goals of the transform fitted by beginRows().
+  int rowCount() const override { return static_cast<int>(ref_.rows()); }
+  int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  void beginRows(const Points& p, const Eigen::VectorXd& w) override;
+  bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
   /// Sets λ ∈ [0, 1].
   void setLambda(double lambda);
   /// Current λ.
@@ -168,6 +250,8 @@ class ShapeMatchingConstraint : public ConstraintSet {
   const Eigen::Matrix4d& lastTransform() const { return last_; }
 
  private:
+  /// Fits last_ to the set's particles of `pAll`, mass-weighted.
+  void fit(const Points& pAll, const Eigen::VectorXd& wAll);
   Points ref_;
   PriorTransform transform_;
   double lambda_;

@@ -1,0 +1,108 @@
+#pragma once
+/// One entry point for every evolution scheme over the same constraint sets (DESIGN-NOTES §5, §6): position-based
+/// (sequential or graph-coloured Gauss–Seidel, weighted-sum Jacobi, XPBD) and force-based (explicit symplectic Euler,
+/// implicit Euler solved by conjugate gradient). Switch scheme by changing SolverOptions only:
+///
+///   SolverOptions o = SolverOptions::fromPbd(pbd);   // dt, iterations, damping, drag as before
+///   o.scheme = parseScheme("xpbd");                  // or Scheme::Xpbd
+///   Solver solver(o);
+///   solver.prepare(x, invMass);
+///   solver.step(sets);                               // as PbdSolver::step
+///
+/// Sets that expose rows (ConstraintRow: 2-simplex internal, image targets, global prior, radial, 3-simplex) run in
+/// every form; a set without rows (collisions) is projected with ConstraintSet::project() by the position-based
+/// schemes and, in the force-based ones, turned into forces F = M Δp / dt² of a projection on a copy of the positions
+/// with the isotropic diagonal derivative −M dt⁻² I.
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/constraints.h"
+#include "msk/core/pbd_solver.h"
+
+namespace msk {
+
+/// Evolution scheme.
+enum class Scheme {
+  GaussSeidel,          ///< "gauss-seidel": PBD, every set projected in its own sequential order (= PbdSolver)
+  ColouredGaussSeidel,  ///< "coloured-gauss-seidel": PBD, rows colour by colour (parallel, thread-count independent)
+  Jacobi,               ///< "jacobi": PBD, weighted sum of all rows' corrections at the same positions, relaxation ω
+  Xpbd,                 ///< "xpbd": extended PBD, compliance α̃ = 1/(k γ dt²), multipliers reset every substep
+  Explicit,             ///< "explicit": forces, symplectic Euler
+  Implicit              ///< "implicit": forces, implicit Euler (Baraff–Witkin), conjugate gradient on 3×3 blocks
+};
+
+/// Name of a scheme as parseScheme() reads it ("gauss-seidel", "coloured-gauss-seidel", "jacobi", "xpbd", "explicit",
+/// "implicit").
+std::string schemeName(Scheme scheme);
+/// Scheme from its name (also "colored-gauss-seidel"); throws ParameterError naming the choices otherwise.
+Scheme parseScheme(const std::string& name);
+/// Every scheme, in declaration order.
+std::vector<Scheme> allSchemes();
+
+/// Settings of Solver (user input). dt, iterations, damping and drag mean what they mean in PbdOptions.
+struct SolverOptions {
+  Scheme scheme = Scheme::GaussSeidel;  ///< evolution scheme
+  double dt = 1.0;           ///< time step of one step() (> 0); with α = γ m̄ dt⁻² it cancels from PBD corrections
+  int substeps = 1;          ///< substeps per step (≥ 1), each of dt / substeps: predict, solve, update velocities
+  int iterations = 1;        ///< position-based: projection sweeps per substep (≥ 1); unused by the force-based ones
+  double damping = 0.5;      ///< ∈ [0, 1]: share of each velocity's deviation from the rigid motion removed per step
+  double drag = 0.5;         ///< ∈ [0, 1]: share of the remaining velocity removed per step (1 = quasi-static)
+  double omega = 1.0;        ///< Jacobi relaxation ω ∈ (0, 2): scales every averaged correction
+  double stiffness = 1.0;    ///< XPBD stiffness k ≥ 0 (mass · time⁻²; +inf = hard, 0 = off), times each row's γ
+  double forceDamping = 1.0; ///< force-based: damping ratio ζ ≥ 0 of the projected damping F = −β (v·F̂) F̂, β = 2ζ√(α m̄)
+  double anisotropy = 0.9;   ///< force-based: k ∈ [0, 1] of direction targets, ∂F/∂P ≈ −α (k I + (1 − k) uuᵀ)
+  int cgIterations = 200;    ///< implicit: most conjugate-gradient iterations per substep (≥ 1)
+  double cgTolerance = 1e-10;  ///< implicit: stop when the preconditioned residual falls below this share (> 0)
+  int threads = 1;           ///< threads (≥ 1; 0 = all cores); results do not depend on it
+
+  /// The position-based Gauss–Seidel scheme with the settings of `pbd` (what PbdSolver runs).
+  static SolverOptions fromPbd(const PbdOptions& pbd);
+};
+
+/// Checks every field (ParameterError naming the field: dt ≤ 0 or non-finite, substeps/iterations/cgIterations < 1,
+/// damping/drag/anisotropy outside [0, 1], ω outside (0, 2), negative or NaN stiffness, negative forceDamping,
+/// cgTolerance ≤ 0, threads < 0).
+void validateSolverOptions(const SolverOptions& opts);
+
+/// Runs one scheme on one particle system (several objects stacked); same interface as PbdSolver.
+class Solver {
+ public:
+  /// Validates the options (validateSolverOptions()).
+  explicit Solver(const SolverOptions& opts);
+  ~Solver();
+  Solver(const Solver&) = delete;
+  Solver& operator=(const Solver&) = delete;
+  /// Sets the initial positions (#V×3, mm) and inverse masses (#V, ≥ 0; 0 = fixed); velocities start at zero.
+  void prepare(const Points& positions, const Eigen::VectorXd& inverseMass);
+  /// Replaces the positions (e.g. after a change of resolution level), keeping zero velocity.
+  void reset(const Points& positions, const Eigen::VectorXd& inverseMass);
+  /// One step (all substeps) with the given constraint sets, in order; returns the largest displacement (mm).
+  /// Throws Error if a position becomes non-finite (the state is left as before the step).
+  double step(const std::vector<ConstraintSet*>& sets);
+  /// Current positions.
+  const Points& positions() const;
+  /// Current velocities (mm per unit of dt).
+  const Points& velocities() const;
+  /// Inverse masses.
+  const Eigen::VectorXd& inverseMass() const;
+  /// Steps taken since prepare().
+  int steps() const;
+  /// Seconds spent on each constraint family (by ConstraintSet::name()).
+  const std::map<std::string, double>& secondsPerFamily() const;
+  /// The options in use.
+  const SolverOptions& options() const;
+  /// Implicit scheme: conjugate-gradient iterations of the last step (all substeps), 0 otherwise.
+  int lastCgIterations() const;
+  /// Implicit scheme: largest relative preconditioned residual left by the last step's solves, 0 otherwise.
+  double lastCgResidual() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace msk

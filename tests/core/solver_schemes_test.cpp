@@ -1,0 +1,408 @@
+// Evolution schemes over one constraint set (solver.h): agreement, momentum, iteration independence of XPBD,
+// determinism with threads, and stability at the extremes of stiffness, time step and mass.
+#include "msk/core/solver.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <random>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+#include "msk/core/graph_colouring.h"
+#include "msk/core/simplex_mesh.h"
+#include "msk/core/triangle_mesh.h"
+
+namespace {
+
+using msk::Points;
+using msk::Scheme;
+using msk::SolverOptions;
+
+/// A 2-simplex sphere (radius 10 mm) with shape memory, image-like targets on every other vertex and a similarity
+/// prior. `consistent`: targets on the sphere scaled by 1.2 (every constraint holds there, the unique answer);
+/// otherwise targets at 1.2× on the x > 0 half and 1× elsewhere (a compromise that depends on the stiffnesses).
+struct SphereProblem {
+  msk::SimplexMesh mesh;
+  Points x0, expected;
+  Eigen::VectorXd w;
+  std::unique_ptr<msk::SimplexInternalConstraints> internal;
+  std::unique_ptr<msk::TargetConstraints> targets;
+  std::unique_ptr<msk::ShapeMatchingConstraint> prior;
+
+  std::vector<msk::ConstraintSet*> sets() const { return {internal.get(), targets.get(), prior.get()}; }
+};
+
+SphereProblem makeSphere(int subdivisions, bool consistent = true, double priorWeight = 0.1) {
+  SphereProblem s;
+  s.mesh = msk::simplexFromTriangles(msk::makeIcosphere(10.0, subdivisions));
+  s.x0 = s.mesh.positions;
+  const int n = s.mesh.vertexCount();
+  s.w = Eigen::VectorXd::Ones(n);
+  s.expected = 1.2 * s.x0;
+  Points t = s.expected;
+  if (!consistent)
+    for (int i = 0; i < n; ++i)
+      if (s.x0(i, 0) <= 0) t.row(i) = s.x0.row(i);
+  Eigen::VectorXd weights(n);
+  for (int i = 0; i < n; ++i) weights[i] = i % 2 == 0 ? 1.0 : 0.0;
+  s.internal = std::make_unique<msk::SimplexInternalConstraints>(s.mesh, 0.8);
+  s.targets = std::make_unique<msk::TargetConstraints>(0.5);
+  s.targets->setTargets(t, weights);
+  s.prior = std::make_unique<msk::ShapeMatchingConstraint>(s.x0, msk::PriorTransform::Similarity, priorWeight);
+  return s;
+}
+
+/// Settings each scheme is run with in these tests (see the report for the recommended presets).
+SolverOptions optionsFor(Scheme scheme) {
+  SolverOptions o;
+  o.scheme = scheme;
+  o.iterations = 4;
+  switch (scheme) {
+    case Scheme::Jacobi: o.omega = 1.5; break;
+    case Scheme::Xpbd: o.stiffness = 1e6; break;
+    case Scheme::Explicit: o.substeps = 4; break;
+    default: break;
+  }
+  return o;
+}
+
+struct RunResult {
+  int steps = 0;
+  bool converged = false;
+  double error = 0, seconds = 0, lastMove = 0;
+  Points x;
+};
+
+/// Steps until no vertex moves more than `tolMm` (or `maxSteps`); error = largest distance to `expected`.
+RunResult run(const SolverOptions& o, const SphereProblem& s, int maxSteps, double tolMm, const Points* expected) {
+  RunResult r;
+  msk::Solver solver(o);
+  solver.prepare(s.x0, s.w);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (; r.steps < maxSteps;) {
+    r.lastMove = solver.step(s.sets());
+    ++r.steps;
+    if (r.lastMove < tolMm) {
+      r.converged = true;
+      break;
+    }
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.x = solver.positions();
+  if (expected) r.error = (r.x - *expected).rowwise().norm().maxCoeff();
+  return r;
+}
+
+bool bitwiseEqual(const Points& a, const Points& b) {
+  return a.rows() == b.rows() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+}  // namespace
+
+TEST(SolverOptions, NamesParseAndBadValuesThrow) {
+  for (Scheme s : msk::allSchemes()) EXPECT_EQ(msk::parseScheme(msk::schemeName(s)), s);
+  EXPECT_EQ(msk::parseScheme("colored-gauss-seidel"), Scheme::ColouredGaussSeidel);
+  EXPECT_THROW(msk::parseScheme("verlet"), msk::ParameterError);
+  auto bad = [](auto change) {
+    SolverOptions o;
+    change(o);
+    EXPECT_THROW(msk::Solver{o}, msk::ParameterError);
+  };
+  bad([](SolverOptions& o) { o.stiffness = -1; });
+  bad([](SolverOptions& o) { o.stiffness = std::nan(""); });
+  bad([](SolverOptions& o) { o.dt = 0; });
+  bad([](SolverOptions& o) { o.dt = -1e-3; });
+  bad([](SolverOptions& o) { o.substeps = 0; });
+  bad([](SolverOptions& o) { o.iterations = 0; });
+  bad([](SolverOptions& o) { o.omega = 0; });
+  bad([](SolverOptions& o) { o.omega = 2; });
+  bad([](SolverOptions& o) { o.damping = 1.5; });
+  bad([](SolverOptions& o) { o.forceDamping = -0.1; });
+  bad([](SolverOptions& o) { o.anisotropy = -0.1; });
+  bad([](SolverOptions& o) { o.cgTolerance = 0; });
+  bad([](SolverOptions& o) { o.threads = -1; });
+  SolverOptions inf;
+  inf.stiffness = std::numeric_limits<double>::infinity();  // hard constraints: allowed
+  EXPECT_NO_THROW(msk::Solver{inf});
+  // Negative set stiffness is refused where the sets are built.
+  EXPECT_THROW(msk::TargetConstraints(-1e-12), msk::ParameterError);
+}
+
+TEST(GraphColouring, NoColourSharesAParticleAndEveryConstraintIsColouredOnce) {
+  const SphereProblem s = makeSphere(3);
+  const msk::ConstraintSet& set = *s.internal;
+  const msk::Colouring c = msk::colourConstraints(
+      set.rowCount(), msk::kMaxRowParticles, [&](int r, int* out) { return set.rowParticles(r, out); });
+  EXPECT_GE(c.colours(), 4);
+  EXPECT_LE(c.colours(), 13);  // Δ + 1: a row shares particles with at most 12 others on a 2-simplex mesh
+  std::vector<int> seen(static_cast<size_t>(set.rowCount()), 0);
+  for (int k = 0; k < c.colours(); ++k) {
+    std::set<int> used;
+    for (int i = c.start[static_cast<size_t>(k)]; i < c.start[static_cast<size_t>(k) + 1]; ++i) {
+      const int r = c.order[static_cast<size_t>(i)];
+      ++seen[static_cast<size_t>(r)];
+      int idx[msk::kMaxRowParticles];
+      const int m = set.rowParticles(r, idx);
+      for (int j = 0; j < m; ++j) EXPECT_TRUE(used.insert(idx[j]).second) << "colour " << k << " row " << r;
+    }
+  }
+  for (int x : seen) EXPECT_EQ(x, 1);
+}
+
+// Sequential Gauss–Seidel through Solver is PbdSolver, bit for bit (the segmenter can switch without a change).
+TEST(SolverSchemes, GaussSeidelIsPbdSolver) {
+  const SphereProblem s = makeSphere(2);
+  msk::PbdOptions pbd;
+  pbd.iterations = 3;
+  msk::PbdSolver a(pbd);
+  msk::Solver b(SolverOptions::fromPbd(pbd));
+  a.prepare(s.x0, s.w);
+  b.prepare(s.x0, s.w);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(a.step(s.sets()), b.step(s.sets()));
+  EXPECT_TRUE(bitwiseEqual(a.positions(), b.positions()));
+  EXPECT_TRUE(bitwiseEqual(a.velocities(), b.velocities()));
+  EXPECT_EQ(b.steps(), 10);
+  EXPECT_GT(b.secondsPerFamily().count("simplex-internal"), 0u);
+}
+
+// Every scheme reaches the unique answer of a consistent problem (the sphere scaled by 1.2 satisfies the shape memory,
+// the targets and the similarity prior), to 0.01 mm on a 12 mm sphere.
+TEST(SolverSchemes, EverySchemeConvergesToTheSameAnswer) {
+  const SphereProblem s = makeSphere(2);
+  for (Scheme scheme : msk::allSchemes()) {
+    const RunResult r = run(optionsFor(scheme), s, 3000, 1e-7, &s.expected);
+    EXPECT_TRUE(r.converged) << msk::schemeName(scheme) << " last move " << r.lastMove;
+    EXPECT_LT(r.error, 0.01) << msk::schemeName(scheme);
+    std::printf("[ figures  ] %-22s converged in %4d steps, max error %.2e mm, %.3f s\n", msk::schemeName(scheme).c_str(),
+                r.steps, r.error, r.seconds);
+  }
+}
+
+// Internal (2-simplex method 2) and collision corrections carry no linear momentum under every position-based
+// scheme: two overlapping, perturbed spheres with random masses, one step without drag.
+TEST(SolverSchemes, InternalAndCollisionCorrectionsConserveLinearMomentum) {
+  const msk::SimplexMesh a = msk::simplexFromTriangles(msk::makeIcosphere(10, 2));
+  msk::SimplexMesh b = msk::simplexFromTriangles(msk::makeIcosphere(10, 2, {16, 0, 0}));
+  const int na = a.vertexCount(), nb = b.vertexCount();
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> jitter(-0.6, 0.6), mass(0.5, 2.0);
+  Points x(na + nb, 3);
+  x.topRows(na) = a.positions;
+  x.bottomRows(nb) = b.positions;
+  for (int i = 0; i < x.rows(); ++i)
+    for (int d = 0; d < 3; ++d) x(i, d) += jitter(rng);
+  Eigen::VectorXd w(na + nb);
+  for (int i = 0; i < w.size(); ++i) w[i] = 1.0 / mass(rng);
+  msk::SimplexInternalConstraints ia(a, 0.9), ib(b, 0.9);
+  ib.setFirstParticle(na);
+  msk::Triangles ta = msk::simplexFanTriangles(a), tb = msk::simplexFanTriangles(b);
+  tb.array() += na;
+  msk::CollisionConstraints cab(0, na, tb, 0.2, 1.0, 0.0), cba(na, nb, ta, 0.2, 1.0, 0.0);
+  for (Scheme scheme : {Scheme::GaussSeidel, Scheme::ColouredGaussSeidel, Scheme::Jacobi, Scheme::Xpbd}) {
+    SolverOptions o = optionsFor(scheme);
+    o.drag = 0;
+    o.damping = 0.5;  // rigid-motion damping keeps momentum too
+    o.substeps = 2;
+    o.stiffness = 10;
+    msk::Solver solver(o);
+    solver.prepare(x, w);
+    cab.detect(x);
+    cba.detect(x);
+    ASSERT_GT(cab.contacts() + cba.contacts(), 20);
+    solver.step({&ia, &ib, &cab, &cba});
+    const Points& v = solver.velocities();
+    Eigen::RowVector3d momentum = Eigen::RowVector3d::Zero();
+    double scale = 0;
+    for (int i = 0; i < v.rows(); ++i) {
+      momentum += v.row(i) / w[i];
+      scale += v.row(i).norm() / w[i];
+    }
+    ASSERT_GT(scale, 1.0) << msk::schemeName(scheme);
+    EXPECT_LT(momentum.norm(), 1e-9 * scale) << msk::schemeName(scheme) << " relative "
+                                             << momentum.norm() / scale;
+  }
+}
+
+// XPBD: the stiffness, not the iteration count, sets the compromise between competing constraints (targets at 1.2×
+// on one half of the sphere against the shape memory): the state after 100 steps is within 2 % of the displacement
+// for 5 to 80 iterations per step.
+TEST(SolverSchemes, XpbdWithinTwoPercentFrom5To80Iterations) {
+  const SphereProblem s = makeSphere(2, false, 0.0);
+  const std::vector<msk::ConstraintSet*> sets = {s.internal.get(), s.targets.get()};
+  auto after100 = [&](Scheme scheme, int iterations) {
+    SolverOptions o = optionsFor(scheme);
+    o.iterations = iterations;
+    o.stiffness = 1.0;
+    msk::Solver solver(o);
+    solver.prepare(s.x0, s.w);
+    for (int i = 0; i < 100; ++i) solver.step(sets);
+    return Points(solver.positions());
+  };
+  const std::vector<int> counts = {5, 10, 20, 40, 80};
+  for (Scheme scheme : {Scheme::Xpbd, Scheme::GaussSeidel}) {
+    std::vector<Points> results;
+    for (int iterations : counts) results.push_back(after100(scheme, iterations));
+    const Points& ref = results.back();
+    const double moved = (ref - s.x0).rowwise().norm().maxCoeff();
+    ASSERT_GT(moved, 0.5);
+    for (size_t i = 0; i < results.size(); ++i) {
+      ASSERT_TRUE(results[i].allFinite());
+      const double dev = (results[i] - ref).rowwise().norm().maxCoeff() / moved;
+      std::printf("[ figures  ] %-12s %2d iterations: deviation from 80 iterations %.3f %% of %.2f mm\n",
+                  msk::schemeName(scheme).c_str(), counts[i], 100 * dev, moved);
+      if (scheme == Scheme::Xpbd) {
+        EXPECT_LT(dev, 0.02) << counts[i] << " iterations";
+      }
+    }
+  }
+}
+
+// Coloured Gauss–Seidel, Jacobi and the conjugate-gradient solve give bitwise-identical results on rerun with 2
+// threads, and the same bits as with 1 thread (the colouring, not the threads, fixes the order of every sum).
+TEST(SolverSchemes, ParallelSchemesAreDeterministic) {
+  const SphereProblem s = makeSphere(4);  // 5120 rows: several hundred per colour, so the threads share the work
+  for (Scheme scheme : {Scheme::ColouredGaussSeidel, Scheme::Jacobi, Scheme::Xpbd, Scheme::Implicit}) {
+    std::vector<Points> out;
+    for (int threads : {2, 2, 1}) {
+      SolverOptions o = optionsFor(scheme);
+      o.threads = threads;
+      o.iterations = 2;
+      msk::Solver solver(o);
+      solver.prepare(s.x0, s.w);
+      for (int i = 0; i < 4; ++i) solver.step(s.sets());
+      out.push_back(solver.positions());
+    }
+    EXPECT_TRUE(bitwiseEqual(out[0], out[1])) << msk::schemeName(scheme) << ": 2 threads differ on rerun";
+    EXPECT_TRUE(bitwiseEqual(out[0], out[2])) << msk::schemeName(scheme) << ": 1 and 2 threads differ";
+    EXPECT_GT((out[0] - s.x0).norm(), 0.1);
+  }
+}
+
+// XPBD stiffness from 0 to hard: k = 0 moves nothing, tiny k barely moves, k = 1e12 and +inf act as hard constraints.
+TEST(SolverExtremes, XpbdStiffness) {
+  const SphereProblem s = makeSphere(2);
+  for (double k : {0.0, 1e-12, 1.0, 1e12, std::numeric_limits<double>::infinity()}) {
+    SolverOptions o = optionsFor(Scheme::Xpbd);
+    o.stiffness = k;
+    const RunResult r = run(o, s, 800, 1e-7, &s.expected);
+    ASSERT_TRUE(r.x.allFinite()) << "k " << k;
+    const double moved = (r.x - s.x0).rowwise().norm().maxCoeff();
+    EXPECT_LT(moved, 2.5) << "k " << k;  // targets are 2 mm away
+    if (k == 0) {
+      EXPECT_EQ(moved, 0.0);
+    } else if (k == 1e-12) {
+      EXPECT_LT(moved, 1e-6);
+    } else if (k >= 1.0) {
+      EXPECT_LT(r.error, 0.01) << "k " << k;
+    }
+  }
+}
+
+// dt from 1e-6 to 10: the position-based and force-based schemes (α = γ m̄ dt⁻²) give the same answer at any dt;
+// XPBD (absolute stiffness) stays bounded.
+TEST(SolverExtremes, TimeStep) {
+  const SphereProblem s = makeSphere(1);
+  for (Scheme scheme : msk::allSchemes()) {
+    for (double dt : {1e-6, 1e-3, 1.0, 10.0}) {
+      SolverOptions o = optionsFor(scheme);
+      o.dt = dt;
+      const RunResult r = run(o, s, 3000, 1e-7, &s.expected);
+      ASSERT_TRUE(r.x.allFinite()) << msk::schemeName(scheme) << " dt " << dt;
+      EXPECT_LT((r.x - s.x0).rowwise().norm().maxCoeff(), 2.5) << msk::schemeName(scheme) << " dt " << dt;
+      if (scheme != Scheme::Xpbd) {
+        EXPECT_LT(r.error, 0.01) << msk::schemeName(scheme) << " dt " << dt;
+      }
+    }
+  }
+}
+
+// Masses from 1e-9 to 1e9 in one system, plus fixed particles: no NaN or Inf, displacement bounded, and the run
+// either converges or stops with msk::Error.
+TEST(SolverExtremes, MassesAndFixedParticles) {
+  const SphereProblem s = makeSphere(1);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> exponent(-9, 9);
+  Eigen::VectorXd w(s.w.size());
+  for (int i = 0; i < w.size(); ++i) w[i] = i % 7 == 3 ? 0.0 : std::pow(10.0, exponent(rng));
+  for (Scheme scheme : msk::allSchemes()) {
+    SolverOptions o = optionsFor(scheme);
+    msk::Solver solver(o);
+    solver.prepare(s.x0, w);
+    try {
+      double move = 1;
+      for (int i = 0; i < 3000 && move > 1e-7; ++i) move = solver.step(s.sets());
+      EXPECT_LT(move, 1e-3) << msk::schemeName(scheme) << " still moving";
+    } catch (const msk::Error& e) {
+      ADD_FAILURE() << msk::schemeName(scheme) << ": " << e.what();
+    }
+    const Points& x = solver.positions();
+    ASSERT_TRUE(x.allFinite()) << msk::schemeName(scheme);
+    // Bounded: the compromise of fixed vertices, 1e-9..1e9 masses and the targets distorts the 80-vertex sphere
+    // (radius 10, targets at 12) to radii 3.4–15 mm, alike under every scheme, but nothing leaves its neighbourhood.
+    EXPECT_LT(x.rowwise().norm().maxCoeff(), 20.0) << msk::schemeName(scheme);
+    EXPECT_LT((x - s.x0).rowwise().norm().maxCoeff(), 26.0) << msk::schemeName(scheme);
+    for (int i = 0; i < w.size(); ++i)
+      if (w[i] == 0) {
+        EXPECT_EQ((x.row(i) - s.x0.row(i)).norm(), 0.0) << msk::schemeName(scheme) << " fixed " << i;
+      }
+  }
+  // Every particle fixed: nothing moves, nothing fails.
+  for (Scheme scheme : msk::allSchemes()) {
+    msk::Solver solver(optionsFor(scheme));
+    solver.prepare(s.x0, Eigen::VectorXd::Zero(s.w.size()));
+    EXPECT_EQ(solver.step(s.sets()), 0.0) << msk::schemeName(scheme);
+  }
+}
+
+// A non-finite position produced by a set is reported as msk::Error and never kept.
+TEST(SolverExtremes, NonFiniteResultIsReportedAndNotKept) {
+  struct Poison : msk::ConstraintSet {
+    std::string name() const override { return "poison"; }
+    void project(Points& p, const Eigen::VectorXd&) override { p(0, 0) = std::nan(""); }
+  } poison;
+  const SphereProblem s = makeSphere(1);
+  for (Scheme scheme : msk::allSchemes()) {
+    msk::Solver solver(optionsFor(scheme));
+    solver.prepare(s.x0, s.w);
+    EXPECT_THROW(solver.step({s.internal.get(), &poison}), msk::Error) << msk::schemeName(scheme);
+    EXPECT_TRUE(solver.positions().allFinite()) << msk::schemeName(scheme);
+  }
+}
+
+// Figures for the report: cost and accuracy of each scheme on a 5120-vertex sphere (printed, never asserted on time).
+TEST(SolverFigures, TradeOffOnTheSphere) {
+  const SphereProblem s = makeSphere(4);
+  struct Setting {
+    const char* label;
+    SolverOptions o;
+  };
+  std::vector<Setting> settings;
+  auto add = [&](const char* label, Scheme scheme, int substeps, int iterations, int threads) {
+    SolverOptions o = optionsFor(scheme);
+    o.substeps = substeps;
+    o.iterations = iterations;
+    o.threads = threads;
+    settings.push_back({label, o});
+  };
+  add("gauss-seidel 1x1", Scheme::GaussSeidel, 1, 1, 1);
+  add("gauss-seidel 1x4", Scheme::GaussSeidel, 1, 4, 1);
+  add("coloured-gs 1x1", Scheme::ColouredGaussSeidel, 1, 1, 1);
+  add("coloured-gs 1x1 2thr", Scheme::ColouredGaussSeidel, 1, 1, 2);
+  add("jacobi 1x4", Scheme::Jacobi, 1, 4, 1);
+  add("xpbd 1x4", Scheme::Xpbd, 1, 4, 1);
+  add("xpbd 2x2", Scheme::Xpbd, 2, 2, 1);
+  add("explicit 4", Scheme::Explicit, 4, 1, 1);
+  add("implicit 1", Scheme::Implicit, 1, 1, 1);
+  for (const Setting& st : settings) {
+    const RunResult r = run(st.o, s, 2000, 1e-4, &s.expected);
+    EXPECT_TRUE(r.x.allFinite());
+    std::printf("[ figures  ] %-22s %4d steps to 1e-4 mm/step, max error %.2e mm, %.3f s (%.1f us/step)\n", st.label,
+                r.steps, r.error, r.seconds, 1e6 * r.seconds / r.steps);
+  }
+}
