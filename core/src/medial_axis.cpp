@@ -227,6 +227,43 @@ void RadialConstraints::setGamma(double gamma) {
 void RadialConstraints::setFirstAxisParticle(int first) {
   if (first < 0) throw ParameterError("radial first axis particle", std::to_string(first), "must be >= 0");
   firstAxis_ = first;
+  rowLayoutChanged();
+}
+
+int RadialConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
+  index[0] = first_ + r;
+  index[1] = firstAxis_ + att_.axisIndex(r, 0);
+  index[2] = firstAxis_ + att_.axisIndex(r, 1);
+  return index[1] == index[2] ? 2 : 3;
+}
+
+bool RadialConstraints::row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
+  (void)w;
+  // The residual of radialCorrection(): C = r̃ (Q̄ − P)/|Q̄ − P| − (Q̄ − P), with the goal direction held constant.
+  const int iv = first_ + r, a = firstAxis_ + att_.axisIndex(r, 0), b = firstAxis_ + att_.axisIndex(r, 1);
+  const double c0 = att_.weights(r, 0), c1 = att_.weights(r, 1), radius = att_.radius[r];
+  if (!(radius >= 0) || !std::isfinite(radius) || !std::isfinite(c0) || !std::isfinite(c1)) return false;
+  const Vec3 pc = c0 * p.row(a).transpose() + c1 * p.row(b).transpose() - p.row(iv).transpose();
+  if (!pc.allFinite()) return false;
+  const double len = pc.norm();
+  if (!(len > 1e-9)) return false;
+  out.c = (radius / len) * pc - pc;
+  out.gamma = gamma_;
+  out.direction = false;
+  out.index[0] = iv;
+  out.grad[0] = out.react[0] = 1.0;
+  if (a == b) {  // both weights on one axis vertex
+    out.count = 2;
+    out.index[1] = a;
+    out.grad[1] = out.react[1] = -(c0 + c1);
+  } else {
+    out.count = 3;
+    out.index[1] = a;
+    out.index[2] = b;
+    out.grad[1] = out.react[1] = -c0;
+    out.grad[2] = out.react[2] = -c1;
+  }
+  return true;
 }
 
 void RadialConstraints::project(Points& p, const Eigen::VectorXd& w) {

@@ -369,4 +369,29 @@ void VolumeSimplexConstraints::project(Points& pAll, const Eigen::VectorXd& wAll
   }
 }
 
+int VolumeSimplexConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
+  index[0] = first_ + r;
+  for (int i = 0; i < 4; ++i) index[i + 1] = first_ + nb_(r, i);
+  return 5;
+}
+
+bool VolumeSimplexConstraints::row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
+  (void)w;
+  if (!active_[r]) return false;
+  const double sumEps = eps_(r, 0) + eps_(r, 1) + eps_(r, 2) + eps_(r, 3);
+  if (!(std::fabs(sumEps - 1.0) < 1e-9)) return false;  // as volumeSimplexCorrection()
+  out.count = 5;
+  out.index[0] = first_ + r;
+  out.grad[0] = out.react[0] = -1.0;
+  out.c = -p.row(first_ + r).transpose();
+  for (int i = 0; i < 4; ++i) {
+    out.index[i + 1] = first_ + nb_(r, i);
+    out.grad[i + 1] = out.react[i + 1] = eps_(r, i);
+    out.c += eps_(r, i) * p.row(first_ + nb_(r, i)).transpose();
+  }
+  out.gamma = gamma_;
+  out.direction = false;
+  return out.c.allFinite();
+}
+
 }  // namespace msk

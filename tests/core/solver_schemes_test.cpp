@@ -15,8 +15,10 @@
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
+#include "msk/core/medial_axis.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/core/volume_simplex.h"
 
 namespace {
 
@@ -97,6 +99,48 @@ RunResult run(const SolverOptions& o, const SphereProblem& s, int maxSteps, doub
   r.x = solver.positions();
   if (expected) r.error = (r.x - *expected).rowwise().norm().maxCoeff();
   return r;
+}
+
+/// n×n×n cubes of side h, each split into 6 positively oriented tets around its main diagonal.
+msk::TetMesh cubeGrid(int n, double h) {
+  msk::TetMesh m;
+  const int s = n + 1;
+  m.nodes.resize(s * s * s, 3);
+  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
+  for (int k = 0; k < s; ++k)
+    for (int j = 0; j < s; ++j)
+      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
+  std::vector<Eigen::Vector4i> tets;
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& pm : perms) {  // path 0 → e_a → e_a + e_b → (1,1,1)
+          int c[3] = {i, j, k};
+          Eigen::Vector4i t;
+          t[0] = id(c[0], c[1], c[2]);
+          for (int step = 0; step < 3; ++step) {
+            ++c[pm[step]];
+            t[step + 1] = id(c[0], c[1], c[2]);
+          }
+          const Eigen::Vector3d a = m.nodes.row(t[0]), b = m.nodes.row(t[1]), cc = m.nodes.row(t[2]),
+                                d = m.nodes.row(t[3]);
+          if (msk::signedTetVolume(a, b, cc, d) < 0) std::swap(t[1], t[2]);
+          tets.push_back(t);
+        }
+  m.tets.resize(static_cast<int>(tets.size()), 4);
+  for (size_t t = 0; t < tets.size(); ++t) m.tets.row(static_cast<int>(t)) = tets[t].transpose();
+  return m;
+}
+
+/// The correction one row gives alone (PBD, Δλ = −γ C / W), as a full #V×3 displacement.
+Points rowCorrection(const msk::ConstraintRow& r, const Eigen::VectorXd& w, int n) {
+  Points d = Points::Zero(n, 3);
+  double W = 0;
+  for (int j = 0; j < r.count; ++j) W += r.grad[j] * r.react[j] * w[r.index[j]];
+  const Eigen::Vector3d dl = (-r.gamma / W) * r.c;
+  for (int j = 0; j < r.count; ++j) d.row(r.index[j]) += (w[r.index[j]] * r.react[j] * dl).transpose();
+  return d;
 }
 
 bool bitwiseEqual(const Points& a, const Points& b) {
@@ -404,5 +448,92 @@ TEST(SolverFigures, TradeOffOnTheSphere) {
     EXPECT_TRUE(r.x.allFinite());
     std::printf("[ figures  ] %-22s %4d steps to 1e-4 mm/step, max error %.2e mm, %.3f s (%.1f us/step)\n", st.label,
                 r.steps, r.error, r.seconds, 1e6 * r.seconds / r.steps);
+  }
+}
+
+// The rows of the radial and 3-simplex sets reproduce their kernels (radialCorrection, volumeSimplexCorrection).
+TEST(ConstraintRows, RadialAndVolumeRowsReproduceTheirKernels) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> mass(0.3, 3.0), jitter(-0.5, 0.5);
+  // Radial: an icosphere around a 5-vertex axis, squeezed and jittered; axis particles after the surface.
+  const msk::TriangleMesh sphere = msk::makeIcosphere(8.0, 2);
+  Points axis(5, 3);
+  for (int j = 0; j < 5; ++j) axis.row(j) << 0, 0, -6.0 + 3.0 * j;
+  const msk::RadialAttachment att = msk::attachToAxis(sphere.vertices, axis);
+  const int nv = sphere.vertexCount(), n = nv + 5;
+  Points p(n, 3);
+  p.topRows(nv) = 0.8 * sphere.vertices;
+  p.bottomRows(5) = axis;
+  for (int i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) p(i, d) += jitter(rng);
+  Eigen::VectorXd w(n);
+  for (int i = 0; i < n; ++i) w[i] = 1.0 / mass(rng);
+  msk::RadialConstraints radial(att, nv, 0.7);
+  ASSERT_EQ(radial.rowCount(), nv);
+  for (int r = 0; r < nv; ++r) {
+    msk::ConstraintRow row;
+    ASSERT_TRUE(radial.row(r, p, w, row));
+    const Points d = rowCorrection(row, w, n);
+    const int a = nv + att.axisIndex(r, 0), b = nv + att.axisIndex(r, 1);
+    const Eigen::Vector3d q[2] = {p.row(a).transpose(), p.row(b).transpose()};
+    const double c[2] = {att.weights(r, 0), att.weights(r, 1)}, wq[2] = {w[a], w[b]};
+    Eigen::Vector3d dp, dq[2];
+    ASSERT_TRUE(msk::radialCorrection(p.row(r).transpose(), q, c, att.radius[r], w[r], wq, 0.7, dp, dq));
+    Points k = Points::Zero(n, 3);
+    k.row(r) += dp.transpose();
+    k.row(a) += dq[0].transpose();
+    k.row(b) += dq[1].transpose();
+    EXPECT_LT((d - k).cwiseAbs().maxCoeff(), 1e-12) << "radial row " << r;
+  }
+  // 3-simplex: a jittered 2×2×2 cube model, ghosts constrained too.
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeGrid(2, 5.0));
+  const int nvol = vm.vertexCount();
+  Points pv = vm.simplex.positions;
+  for (int i = 0; i < nvol; ++i)
+    for (int d = 0; d < 3; ++d) pv(i, d) += jitter(rng);
+  Eigen::VectorXd wv(nvol);
+  for (int i = 0; i < nvol; ++i) wv[i] = 1.0 / mass(rng);
+  msk::VolumeSimplexConstraints vol(vm, 0.6, msk::VolumeBoundary::Constrained);
+  int checked = 0;
+  for (int r = 0; r < nvol; ++r) {
+    msk::ConstraintRow row;
+    if (!vol.row(r, pv, wv, row)) continue;
+    ++checked;
+    const Points d = rowCorrection(row, wv, nvol);
+    Eigen::Vector3d pi[4], dp, dpi[4];
+    double wi[4], eps[4];
+    for (int i = 0; i < 4; ++i) {
+      pi[i] = pv.row(vm.simplex.neighbors(r, i)).transpose();
+      wi[i] = wv[vm.simplex.neighbors(r, i)];
+      eps[i] = vm.epsilon(r, i);
+    }
+    ASSERT_TRUE(msk::volumeSimplexCorrection(pv.row(r).transpose(), pi, wv[r], wi, eps, 0.6, dp, dpi));
+    Points k = Points::Zero(nvol, 3);
+    k.row(r) += dp.transpose();
+    for (int i = 0; i < 4; ++i) k.row(vm.simplex.neighbors(r, i)) += dpi[i].transpose();
+    EXPECT_LT((d - k).cwiseAbs().maxCoeff(), 1e-12) << "volume row " << r;
+  }
+  EXPECT_GT(checked, nvol / 2);
+}
+
+// A jittered volume model with its ghosts fixed returns to rest under every scheme (the unique answer).
+TEST(SolverSchemes, VolumeModelReturnsToRestUnderEveryScheme) {
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeGrid(2, 5.0));
+  const int n = vm.vertexCount();
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> jitter(-0.8, 0.8);
+  Points x0 = vm.simplex.positions;
+  for (int i = 0; i < vm.tetCount(); ++i)
+    for (int d = 0; d < 3; ++d) x0(i, d) += jitter(rng);
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  w.tail(vm.ghostCount()).setZero();
+  msk::VolumeSimplexConstraints vol(vm, 1.0);
+  for (Scheme scheme : msk::allSchemes()) {
+    msk::Solver solver(optionsFor(scheme));
+    solver.prepare(x0, w);
+    double move = 1;
+    for (int i = 0; i < 3000 && move > 1e-8; ++i) move = solver.step({&vol});
+    const double err = (solver.positions() - vm.simplex.positions).rowwise().norm().maxCoeff();
+    EXPECT_LT(err, 1e-4) << msk::schemeName(scheme);
   }
 }

@@ -96,6 +96,10 @@ class RadialConstraints : public ConstraintSet {
   RadialConstraints(const RadialAttachment& attachment, int firstAxisParticle, double gamma);
   std::string name() const override { return "radial"; }
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// One row per surface vertex (solver.h): C = G − (Q̄ − P), g = r = (1, −c0, −c1) for (P, Q0, Q1).
+  int rowCount() const override { return att_.vertexCount(); }
+  int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
   /// Sets γ ∈ [0, 1] (throws ParameterError otherwise).
   void setGamma(double gamma);
   /// User stiffness γ.

@@ -132,6 +132,10 @@ class VolumeSimplexConstraints : public ConstraintSet {
                            VolumeBoundary boundary = VolumeBoundary::SurfaceDriven);
   std::string name() const override { return "volume-simplex"; }
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// One row per vertex (solver.h): C = Σ ε̃i Pi − P, g = r = (−1, ε̃i); inactive vertices give no row.
+  int rowCount() const override { return static_cast<int>(nb_.rows()); }
+  int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
   /// User stiffness γ.
   double gamma() const { return gamma_; }
   /// Number of projections skipped as degenerate in the last pass (degenerate = 2 vertices excluded).
