@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "msk/core/error.h"
 #include "msk/segmentation/phantom.h"
 
 namespace msk::phantom {
@@ -18,10 +19,12 @@ double smoothstep(double t) {
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a[0] * b[1] - a[1] * b[0]; }
 
-// Compartments: 0 quadriceps (lateral → medial septum, through anterior), 1 hamstrings (posterior → lateral),
-// 2 adductors (medial → posterior).
-constexpr std::array<int, kMuscles> kStart{0, 2, 1};
-constexpr std::array<int, kMuscles> kEnd{1, 0, 2};
+// Angular width (degrees, in [0, 360)) of compartment m: from its first septum counter-clockwise to its last.
+double sectorWidthDeg(const Anatomy& a, int m) {
+  double w = a.septumAngleDeg[static_cast<size_t>(a.muscleLastSeptum[static_cast<size_t>(m)])] -
+             a.septumAngleDeg[static_cast<size_t>(a.muscleFirstSeptum[static_cast<size_t>(m)])];
+  return std::fmod(std::fmod(w, 360.0) + 360.0, 360.0);
+}
 
 }  // namespace
 
@@ -38,13 +41,15 @@ double Random::normal() {
 }
 
 Model::Model(const Anatomy& a) : a_(a) {
-  for (int m = 0; m < kMuscles; ++m) {
-    startSeptum_[static_cast<size_t>(m)] = kStart[static_cast<size_t>(m)];
-    endSeptum_[static_cast<size_t>(m)] = kEnd[static_cast<size_t>(m)];
-    double w = a_.septumAngleDeg[static_cast<size_t>(kEnd[static_cast<size_t>(m)])] -
-               a_.septumAngleDeg[static_cast<size_t>(kStart[static_cast<size_t>(m)])];
-    w = std::fmod(std::fmod(w, 360.0) + 360.0, 360.0);
-    convex_[static_cast<size_t>(m)] = w <= 180.0;
+  if (a_.muscles < 2 || a_.muscles > kMaxMuscles)
+    throw ParameterError("muscles", std::to_string(a_.muscles), "must be in [2, " + std::to_string(kMaxMuscles) + "]");
+  for (int m = 0; m < a_.muscles; ++m) {
+    const size_t mm = static_cast<size_t>(m);
+    for (int septum : {a_.muscleFirstSeptum[mm], a_.muscleLastSeptum[mm]})
+      if (septum < 0 || septum >= a_.muscles)
+        throw ParameterError("muscleFirstSeptum/muscleLastSeptum", std::to_string(septum),
+                             "must be a septum index in [0, muscles)");
+    convex_[mm] = sectorWidthDeg(a_, m) <= 180.0;
   }
   // Skin: the smallest elliptic cylinder (about the straight part of the axis) that keeps at least fatX/fatY of
   // fat around the envelope at every z.
@@ -93,7 +98,7 @@ Slice Model::slice(double z) const {
   s.envCentre = s.axis + a_.envelopeOffset * std::max(0.0, 1.0 - u * u);
 
   const double twist = a_.twistDeg * std::clamp(u, -1.5, 1.5);
-  for (size_t i = 0; i < kSepta; ++i) {
+  for (size_t i = 0; i < static_cast<size_t>(a_.muscles); ++i) {
     const double th = (a_.septumAngleDeg[i] + twist) * kDeg;
     s.septumDir[i] = Eigen::Vector2d(std::cos(th), std::sin(th));
     const double lo = a_.septumMissing[i][0], hi = a_.septumMissing[i][1];
@@ -122,7 +127,7 @@ double Model::envelope(const Slice& s, const Eigen::Vector3d& p) const {
 
 double Model::sector(const Slice& s, int m, const Eigen::Vector3d& p) const {
   const size_t mm = static_cast<size_t>(m);
-  const size_t a = static_cast<size_t>(startSeptum_[mm]), b = static_cast<size_t>(endSeptum_[mm]);
+  const size_t a = static_cast<size_t>(a_.muscleFirstSeptum[mm]), b = static_cast<size_t>(a_.muscleLastSeptum[mm]);
   const Eigen::Vector2d q = p.head<2>() - s.axis;
   const double fa = s.septumHalf[a] - cross2(s.septumDir[a], q);  // < 0 on the counter-clockwise side of septum a
   const double fb = s.septumHalf[b] - cross2(q, s.septumDir[b]);  // < 0 on the clockwise side of septum b
@@ -175,7 +180,7 @@ PointClass Model::classify(const Eigen::Vector3d& p) const {
     return c;
   }
   const double boneGap = a_.gap - fem;
-  for (int m = 0; m < kMuscles; ++m) {
+  for (int m = 0; m < a_.muscles; ++m) {
     const double f = std::max({env, boneGap, sector(s, m, p)});
     c.bound = std::min(c.bound, std::fabs(f));
     if (f < 0) {
@@ -231,6 +236,11 @@ std::array<Eigen::Vector3d, 2> Model::objectBounds(int object) const {
 Anatomy drawAnatomy(uint32_t seed) {
   Random rng(seed);
   Anatomy a;
+  perturbAnatomy(a, rng);
+  return a;
+}
+
+void perturbAnatomy(Anatomy& a, Random& rng) {
   a.femurBase += Eigen::Vector2d(rng.uniform(-4, 4), rng.uniform(-4, 4));
   a.femurTilt += Eigen::Vector2d(rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02));
   a.femurBow += Eigen::Vector2d(rng.uniform(-1.5, 1.5), rng.uniform(-2, 2));
@@ -247,11 +257,12 @@ Anatomy drawAnatomy(uint32_t seed) {
   a.envelopeRadiusY += rng.uniform(-2, 2);
   a.envelopeTaper += rng.uniform(-0.03, 0.03);
   a.envelopeWavePhase = rng.uniform(0, 2 * M_PI);
-  for (double& t : a.septumAngleDeg) t += rng.uniform(-10, 10);
+  for (int i = 0; i < a.muscles; ++i) a.septumAngleDeg[static_cast<size_t>(i)] += rng.uniform(-10, 10);
   a.twistDeg += rng.uniform(-8, 8);
   // Each septum is missing over one stretch of 20–40 % of the muscles' length.
   const double len = 2 * a.envelopeHalfLength;
-  for (auto& gap : a.septumMissing) {
+  for (int i = 0; i < a.muscles; ++i) {
+    auto& gap = a.septumMissing[static_cast<size_t>(i)];
     const double l = rng.uniform(0.2, 0.4) * len;
     const double lo =
         rng.uniform(a.envelopeCentreZ - 0.8 * a.envelopeHalfLength, a.envelopeCentreZ + 0.8 * a.envelopeHalfLength - l);
@@ -262,10 +273,9 @@ Anatomy drawAnatomy(uint32_t seed) {
 
   // Intramuscular fat: two sheets per compartment, roughly parallel to the envelope.
   const Model model(a);
-  for (int m = 0; m < kMuscles; ++m) {
-    const double th0 = a.septumAngleDeg[static_cast<size_t>(kStart[static_cast<size_t>(m)])];
-    double w = a.septumAngleDeg[static_cast<size_t>(kEnd[static_cast<size_t>(m)])] - th0;
-    w = std::fmod(std::fmod(w, 360.0) + 360.0, 360.0);
+  for (int m = 0; m < a.muscles; ++m) {
+    const double th0 = a.septumAngleDeg[static_cast<size_t>(a.muscleFirstSeptum[static_cast<size_t>(m)])];
+    const double w = sectorWidthDeg(a, m);
     for (int k = 0; k < 2; ++k) {
       Streak st;
       st.muscle = m;
@@ -294,7 +304,6 @@ Anatomy drawAnatomy(uint32_t seed) {
       a.streaks.push_back(st);
     }
   }
-  return a;
 }
 
 }  // namespace msk::phantom

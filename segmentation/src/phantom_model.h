@@ -1,5 +1,6 @@
 #pragma once
-// Private to phantom.cpp: the phantom's anatomy as implicit functions of world position (RAS mm).
+// Private to the phantoms (phantom.cpp, multi_phantom.cpp): a limb's anatomy (one bone, a ring of muscle compartments
+// separated by septa, fat, skin) as implicit functions of position (RAS mm, +x lateral).
 // Every structure is a signed-distance-like function, negative inside, Lipschitz constant close to 1,
 // so |f| is (nearly) a lower bound on the distance to its surface.
 #include <Eigen/Core>
@@ -29,15 +30,12 @@ class Random {
   double spare_ = 0;
 };
 
-/// Number of muscle compartments.
-constexpr int kMuscles = 3;
-/// Number of intermuscular septa (0 lateral: quadriceps|hamstrings, 1 medial: quadriceps|adductors,
-/// 2 posterior: adductors|hamstrings).
-constexpr int kSepta = 3;
+/// Largest number of muscle compartments of a limb (there are as many septa as compartments).
+constexpr int kMaxMuscles = 8;
 
 /// A thin curved fat sheet inside one muscle: the part of a sphere's surface inside an ellipsoidal patch.
 struct Streak {
-  int muscle = 0;                                    ///< compartment index 0..kMuscles-1
+  int muscle = 0;                                    ///< compartment index 0..Anatomy::muscles-1
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< patch centre (on the sheet)
   Eigen::Vector3d sphereCentre = Eigen::Vector3d::Zero();
   double sphereRadius = 60;                      ///< sheet curvature radius, mm
@@ -45,7 +43,8 @@ struct Streak {
   double patchRadiusXY = 10, patchRadiusZ = 30;  ///< patch ellipsoid semi-axes, mm
 };
 
-/// Parameters of one thigh. Anatomy{} is the mean anatomy (templates); drawAnatomy() perturbs it.
+/// Parameters of one limb segment. Anatomy{} is the mean thigh of the thigh phantom (templates); drawAnatomy()
+/// perturbs it.
 struct Anatomy {
   // Femur: capsule around a bent centreline c(z) = base + tilt·z + bow·(1 − (z/bowHalfLength)²).
   Eigen::Vector2d femurBase{5, 3};               ///< centreline xy at z = 0, mm
@@ -64,11 +63,17 @@ struct Anatomy {
   double envelopeRadiusX = 48, envelopeRadiusY = 42;    ///< cross-section semi-axes at the middle, mm
   double envelopeTaper = 0.10;                          ///< radii × (1 + taper·u): wider proximally
   double envelopeWave = 0.04, envelopeWavePhase = 0;    ///< radii × (1 + wave·sin(1.5πu + phase))
-  // Septa: half-planes radiating from the femur axis, angle from +x (lateral) towards +y (anterior).
-  std::array<double, kSepta> septumAngleDeg{-40, 150, 245};  ///< at u = 0
+  // Septa: half-planes radiating from the femur axis, angle from +x (lateral) towards +y (anterior). The thigh's are
+  // 0 lateral (quadriceps|hamstrings), 1 medial (quadriceps|adductors), 2 posterior (adductors|hamstrings).
+  int muscles = 3;                                          ///< compartments (= septa), at most kMaxMuscles
+  std::array<double, kMaxMuscles> septumAngleDeg{-40, 150, 245};  ///< at u = 0
+  /// Compartment m spans counter-clockwise from septum muscleFirstSeptum[m] to septum muscleLastSeptum[m]
+  /// (thigh: 0 quadriceps, 1 hamstrings, 2 adductors).
+  std::array<int, kMaxMuscles> muscleFirstSeptum{0, 2, 1};
+  std::array<int, kMaxMuscles> muscleLastSeptum{1, 0, 2};  ///< see muscleFirstSeptum
   double twistDeg = 10;              ///< common rotation added at u = +1 (subtracted at u = −1)
   double septumHalfThickness = 0.7;  ///< mm
-  std::array<std::array<double, 2>, kSepta> septumMissing{};  ///< z interval [lo, hi] without septum (none if lo ≥ hi)
+  std::array<std::array<double, 2>, kMaxMuscles> septumMissing{};  ///< z interval [lo, hi] without septum (none if lo ≥ hi)
   double septumRamp = 5.0;                                    ///< mm over which a septum fades in and out
   // Subcutaneous fat and skin: elliptic cylinder around the envelope.
   double fatX = 10, fatY = 10;  ///< minimum fat thickness along x and y, mm
@@ -76,9 +81,12 @@ struct Anatomy {
   std::vector<Streak> streaks;  ///< intramuscular fat
 };
 
-/// Draws a seeded anatomy: the mean Anatomy{} plus uniform offsets, one missing stretch per septum and two fat
-/// streaks per muscle.
+/// Draws a seeded anatomy: the mean Anatomy{} perturbed by perturbAnatomy().
 Anatomy drawAnatomy(uint32_t seed);
+
+/// Perturbs an anatomy in place with uniform offsets (positions, bend, radii, septa, twist), one missing stretch per
+/// septum and two fat streaks per muscle, drawing from `rng`.
+void perturbAnatomy(Anatomy& a, Random& rng);
 
 /// Everything that depends on z only, evaluated once per z.
 struct Slice {
@@ -89,14 +97,14 @@ struct Slice {
   double radius = 0, marrowRadius = 0;                ///< at clamp(z)
   Eigen::Vector2d envCentre;                          ///< envelope centre
   double envA = 1, envB = 1, envU = 0, envScale = 1;  ///< semi-axes, normalised z, min(a, b)
-  std::array<Eigen::Vector2d, kSepta> septumDir;      ///< unit directions of the septa
-  std::array<double, kSepta> septumHalf{};            ///< half-thicknesses (0 where missing)
+  std::array<Eigen::Vector2d, kMaxMuscles> septumDir;  ///< unit directions of the septa
+  std::array<double, kMaxMuscles> septumHalf{};        ///< half-thicknesses (0 where missing)
   Eigen::Vector2d skinCentre;                         ///< skin cylinder axis
 };
 
 /// What a point is made of.
 struct PointClass {
-  int32_t label = 0;   ///< object label (0, femur 1, muscles 2..4)
+  int32_t label = 0;   ///< object label (0, bone 1, muscles 2..muscles+1)
   int32_t tissue = 0;  ///< PhantomTissue value
   double bound = 0;    ///< lower bound (up to the Lipschitz factor) on the distance to the nearest tissue boundary, mm
 };
@@ -104,7 +112,7 @@ struct PointClass {
 /// Evaluates an Anatomy: implicit functions, labels, tissue classes, bounding boxes.
 class Model {
  public:
-  /// Derives the skin size and sector widths.
+  /// Derives the skin size and sector widths. Throws ParameterError if a.muscles is not in [2, kMaxMuscles].
   explicit Model(const Anatomy& a);
   /// The anatomy.
   const Anatomy& anatomy() const { return a_; }
@@ -120,7 +128,7 @@ class Model {
   double sector(const Slice& s, int m, const Eigen::Vector3d& p) const;
   /// Muscle compartment m (envelope ∩ outside bone+gap ∩ sector); label m + 2.
   double muscle(const Slice& s, int m, const Eigen::Vector3d& p) const;
-  /// Object function: object 0 = femur, 1..kMuscles = muscle object−1.
+  /// Object function: object 0 = bone, 1..muscles = muscle object−1.
   double object(int object, const Slice& s, const Eigen::Vector3d& p) const {
     return object == 0 ? femur(s, p) : muscle(s, object - 1, p);
   }
@@ -143,8 +151,7 @@ class Model {
   double flareFraction(double z) const;
   Anatomy a_;
   double skinX_ = 0, skinY_ = 0;  // fat boundary semi-axes (skin inner surface)
-  std::array<int, kMuscles> startSeptum_{}, endSeptum_{};
-  std::array<bool, kMuscles> convex_{};
+  std::array<bool, kMaxMuscles> convex_{};
 };
 
 }  // namespace msk::phantom

@@ -53,6 +53,7 @@ struct Phantom {
   LabelMap labels;                    ///< exact labels on the image grid
   std::vector<PhantomObject> objects; ///< structures with labels > 0
   LabelMap tissues;                   ///< PhantomTissue class at each voxel centre (same grid as the image)
+  std::string generator = "mskseg-phantom";  ///< generator name written into scene.json's "phantom" key
 };
 
 /// Generates a phantom in memory: a right thigh in RAS mm (+x lateral, +y anterior, +z superior) with
