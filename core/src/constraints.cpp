@@ -31,19 +31,26 @@ std::uint64_t ConstraintSet::newUid() {
   return next.fetch_add(1);
 }
 
-bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double hOverR, Eigen::Vector3d& target) {
+namespace {
+/// simplexShapeTarget(), inline so that the sweeps keep the neighbours in registers (no stack round trip).
+inline bool shapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double hOverR, Eigen::Vector3d& target) {
   double r = 0;
   Eigen::Vector3d n;
   if (!triangleFrame(pi[0], pi[1], pi[2], r, n)) return false;
   target = epsRef[0] * pi[0] + epsRef[1] * pi[1] + epsRef[2] * pi[2] + hOverR * r * n;
   return target.allFinite();
 }
+}  // namespace
+
+bool simplexShapeTarget(const Eigen::Vector3d pi[3], const double epsRef[3], double hOverR, Eigen::Vector3d& target) {
+  return shapeTarget(pi, epsRef, hOverR, target);
+}
 
 namespace {
 /// Reaction weights λ of the 2-simplex internal constraint (method 2) for the correction d = P̃ − P and the
 /// denominator 1/m̄ = w + Σ ε̃i λi wi; falls back to λ = ε̃ where no torque-free split exists. False if degenerate.
-bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& d, double w,
-                   const double wi[3], const double eps[3], Eigen::Vector3d& lambda, double& denom, bool& split) {
+inline bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& d, double w,
+                          const double wi[3], const double eps[3], Eigen::Vector3d& lambda, double& denom, bool& split) {
   if (!d.allFinite()) return false;
   if (w <= 0 && wi[0] <= 0 && wi[1] <= 0 && wi[2] <= 0) return false;
   const Eigen::Vector3d a1 = pi[0] - p, a2 = pi[1] - p, a3 = pi[2] - p;
@@ -71,9 +78,9 @@ bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const 
   }
   return true;
 }
-}  // namespace
 
-bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
+/// simplexInternalCorrection(), inline for the sweeps (as shapeTarget()).
+inline bool internalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
                                double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
                                Eigen::Vector3d dpi[3], bool* torqueFree) {
   const Eigen::Vector3d d = target - p;
@@ -86,6 +93,13 @@ bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
   dp = (w * mbar) * d;
   for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
   return true;
+}
+}  // namespace
+
+bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
+                               double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
+                               Eigen::Vector3d dpi[3], bool* torqueFree) {
+  return internalCorrection(p, pi, target, w, wi, eps, gamma, dp, dpi, torqueFree);
 }
 
 bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, double w, double gamma,
@@ -164,13 +178,13 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
     }
     const double hr = mode_ == InternalMode::Smoothing ? smoothH[v] : hOverR_[v];
     Eigen::Vector3d target;
-    if (!simplexShapeTarget(pi, eps, hr, target)) {
+    if (!shapeTarget(pi, eps, hr, target)) {
       ++skipped_;
       continue;
     }
     const double wi[3] = {w[i0], w[i1], w[i2]};
     Eigen::Vector3d dp, dpi[3];
-    if (!simplexInternalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi)) {
+    if (!internalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi, nullptr)) {
       ++skipped_;
       continue;
     }

@@ -1,0 +1,304 @@
+// Constraint-projection kernels (issue 5): projections per second on one core for every constraint type, and how the
+// cost of a sweep grows with the vertex count, 10³ to 10⁶ vertices (benchmark's complexity fit, BigO lines).
+// Run: scripts/bench-kernels.sh (builds, runs with a short min time, prints M projections/s and scaling exponents),
+// or build-*/bench/kernels_bench [--benchmark_filter=Internal].
+//
+// Meshes: simplex spheres, dual of an icosphere subdivided s = 3..8 times (20·4^s vertices: 1 280 .. 1 310 720);
+// volume models: dual of an n³ block of Freudenthal cubes (6n³ tets + 12n² ghosts). Every sweep is one pass over all
+// constraints of a set in its own (Gauss–Seidel) order, single-threaded.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <random>
+#include <utility>
+
+#include "msk/core/collision_surface.h"
+#include "msk/core/constraints.h"
+#include "msk/core/medial_axis.h"
+#include "msk/core/simplex_mesh.h"
+#include "msk/core/triangle_mesh.h"
+#include "msk/core/volume_simplex.h"
+
+namespace {
+
+/// Icosphere subdivision levels benchmarked: 20·4^s simplex vertices.
+constexpr int kMinLevel = 3, kMaxLevel = 8;
+
+/// Triangle mesh and dual simplex mesh of the unit icosphere at subdivision s (built once, reused).
+const std::pair<msk::TriangleMesh, msk::SimplexMesh>& unitSphere(int s) {
+  static std::map<int, std::pair<msk::TriangleMesh, msk::SimplexMesh>> cache;
+  auto it = cache.find(s);
+  if (it == cache.end()) {
+    msk::TriangleMesh t = msk::makeIcosphere(1.0, s);
+    msk::SimplexMesh m = msk::simplexFromTriangles(t);
+    it = cache.emplace(s, std::make_pair(std::move(t), std::move(m))).first;
+  }
+  return it->second;
+}
+
+/// Simplex sphere of radius r (mm) at subdivision s.
+msk::SimplexMesh simplexSphere(int s, double r) {
+  msk::SimplexMesh m = unitSphere(s).second;
+  m.positions *= r;
+  return m;
+}
+
+/// Mean distance between simplex neighbours (mm).
+double meanSimplexEdge(const msk::SimplexMesh& m) {
+  double sum = 0;
+  for (int v = 0; v < m.vertexCount(); ++v)
+    for (int j = 0; j < 3; ++j) sum += (m.positions.row(v) - m.positions.row(m.neighbors(v, j))).norm();
+  return sum / (3.0 * m.vertexCount());
+}
+
+/// Positions of `m` with a small deterministic random perturbation (so every constraint has work to do).
+msk::Points perturbed(const msk::Points& p, double amplitude, unsigned seed = 1) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amplitude, amplitude);
+  msk::Points q = p;
+  for (int i = 0; i < q.rows(); ++i)
+    for (int c = 0; c < 3; ++c) q(i, c) += u(rng);
+  return q;
+}
+
+/// Records items (projections), the complexity N and the usual counters.
+void finish(benchmark::State& state, int64_t perSweep, int64_t n) {
+  state.SetItemsProcessed(state.iterations() * perSweep);
+  state.SetComplexityN(n);
+  state.counters["vertices"] = static_cast<double>(n);
+  state.counters["ns_per_item"] = benchmark::Counter(static_cast<double>(perSweep) * state.iterations(),
+                                                     benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+// 2-simplex internal constraint (shape memory), one Gauss–Seidel sweep over every vertex of a sphere of radius 50 mm.
+void BM_SimplexInternal(benchmark::State& state) {
+  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  msk::SimplexInternalConstraints c(s, 0.5);
+  msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["skipped"] = c.skipped();
+  finish(state, s.vertexCount(), s.vertexCount());
+}
+BENCHMARK(BM_SimplexInternal)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+// 2-simplex internal constraint, smoothing mode (ε̃ = 1/3, neighbourhood-mean heights: two extra passes).
+void BM_SimplexInternalSmoothing(benchmark::State& state) {
+  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  msk::SimplexInternalConstraints c(s, 0.5, msk::InternalMode::Smoothing);
+  msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  finish(state, s.vertexCount(), s.vertexCount());
+}
+BENCHMARK(BM_SimplexInternalSmoothing)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+// The bare kernels on one fixed neighbourhood (no memory traffic): the ceiling of a sweep.
+void BM_SimplexInternalKernelOnly(benchmark::State& state) {
+  const Eigen::Vector3d pi[3] = {{10, 0, 0}, {-5, 8.7, 0.3}, {-5, -8.7, -0.2}};
+  const double eps[3] = {0.3, 0.3, 0.4}, wi[3] = {1, 1, 1};
+  Eigen::Vector3d p(0.2, 0.1, 3.0);
+  for (auto _ : state) {
+    Eigen::Vector3d target, dp, dpi[3];
+    benchmark::DoNotOptimize(p);
+    if (msk::simplexShapeTarget(pi, eps, 0.25, target) &&
+        msk::simplexInternalCorrection(p, pi, target, 1.0, wi, eps, 0.5, dp, dpi)) {
+      benchmark::DoNotOptimize(dp);
+      benchmark::DoNotOptimize(dpi[0]);
+    }
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SimplexInternalKernelOnly);
+
+// Image target constraints (one per vertex, weight 1).
+void BM_ImageTargets(benchmark::State& state) {
+  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const int n = s.vertexCount();
+  msk::TargetConstraints c(0.25);
+  c.setTargets(perturbed(s.positions * 1.02, 0.5, 2), Eigen::VectorXd::Ones(n));
+  msk::Points p = s.positions;
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  finish(state, n, n);
+}
+BENCHMARK(BM_ImageTargets)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+// Global shape prior (similarity fit + pull), items = vertices.
+void BM_ShapePrior(benchmark::State& state) {
+  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const int n = s.vertexCount();
+  msk::ShapeMatchingConstraint c(s.positions, msk::PriorTransform::Similarity, 0.1);
+  msk::Points p = perturbed(s.positions * 1.05, 1.0, 3);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  finish(state, n, n);
+}
+BENCHMARK(BM_ShapePrior)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+/// Two simplex spheres of radius r stacked in one particle system, B's centre 1.8 r along x (a cap of A overlaps B),
+/// with B's fan triangles as the partner surface of A.
+struct CollisionPair {
+  msk::Points p;
+  Eigen::VectorXd w;
+  msk::Triangles trianglesB;
+  int na = 0;
+  double edge = 0;
+};
+
+CollisionPair collisionPair(int s, double r) {
+  const msk::SimplexMesh a = simplexSphere(s, r);
+  CollisionPair c;
+  c.na = a.vertexCount();
+  c.edge = meanSimplexEdge(a);
+  c.p.resize(2 * c.na, 3);
+  c.p.topRows(c.na) = a.positions;
+  c.p.bottomRows(c.na) = a.positions.rowwise() + Eigen::RowVector3d(1.8 * r, 0, 0);
+  c.w = Eigen::VectorXd::Ones(2 * c.na);
+  c.trianglesB = msk::simplexFanTriangles(a).array() + c.na;
+  return c;
+}
+
+/// Sphere radius (mm) giving a mean simplex edge of about 1 mm at subdivision s (the surface grows with the mesh).
+double unitEdgeRadius(int s) { return 1.0 / meanSimplexEdge(unitSphere(s).second); }
+
+// Collision detection of A's vertices against B (grid rebuild over B's triangles + closest-point queries, with the
+// inside test). "FixedSize": radius 50 mm, reach 1.2 mm (gap 0.2 + proximity 1): the mesh refines under a fixed
+// reach, as when a finer template of the same bone is used. "UnitEdge": the spheres grow so the mean edge stays
+// ~1 mm, reach 1.2 mm: the surface grows with the vertex count. Items = queried vertices.
+void collisionDetect(benchmark::State& state, bool unitEdge) {
+  const int s = static_cast<int>(state.range(0));
+  const CollisionPair c = collisionPair(s, unitEdge ? unitEdgeRadius(s) : 50.0);
+  msk::CollisionConstraints set(0, c.na, c.trianglesB, 0.2, 1.0, 0.0);
+  for (auto _ : state) {
+    set.detect(c.p, true);
+    benchmark::DoNotOptimize(set.contacts());
+  }
+  state.counters["contacts"] = set.contacts();
+  state.counters["edge_mm"] = c.edge;
+  finish(state, c.na, c.na);
+}
+void BM_CollisionDetectFixedSize(benchmark::State& state) { collisionDetect(state, false); }
+void BM_CollisionDetectUnitEdge(benchmark::State& state) { collisionDetect(state, true); }
+BENCHMARK(BM_CollisionDetectFixedSize)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK(BM_CollisionDetectUnitEdge)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+// Collision projection over the contacts of one detection (positions restored, untimed, before every sweep so each
+// contact is violated). Items = contacts projected.
+void BM_CollisionProject(benchmark::State& state) {
+  const int s = static_cast<int>(state.range(0));
+  const CollisionPair c = collisionPair(s, unitEdgeRadius(s));
+  msk::CollisionConstraints set(0, c.na, c.trianglesB, 0.2, 1.0, 0.0);
+  set.detect(c.p, true);
+  msk::Points p = c.p;
+  for (auto _ : state) {
+    state.PauseTiming();
+    p = c.p;
+    state.ResumeTiming();
+    set.project(p, c.w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["contacts"] = set.contacts();
+  finish(state, set.contacts(), c.na);
+}
+BENCHMARK(BM_CollisionProject)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+// Radial constraints of a tube-like ellipsoid (semi-axes r, r, 3r; r = 20 mm) bound to its medial axis (40 slices),
+// axis particles stacked after the surface with the mass of the surface they carry. Items = surface vertices.
+void BM_Radial(benchmark::State& state) {
+  const int s = static_cast<int>(state.range(0));
+  msk::TriangleMesh t = unitSphere(s).first;
+  msk::SimplexMesh m = unitSphere(s).second;
+  const Eigen::Vector3d axes(20, 20, 60);
+  t.vertices = t.vertices * axes.asDiagonal();
+  m.positions = m.positions * axes.asDiagonal();
+  msk::MedialAxisOptions mo;
+  mo.slices = 40;
+  const msk::MedialAxis axis = msk::buildMedialAxis(t, mo);
+  const msk::RadialAttachment att = msk::attachToAxis(m.positions, axis.curve.positions);
+  const int n = m.vertexCount(), na = axis.curve.vertexCount();
+  msk::Points p(n + na, 3);
+  p.topRows(n) = perturbed(m.positions, 0.3, 4);
+  p.bottomRows(na) = axis.curve.positions;
+  Eigen::VectorXd w(n + na);
+  w.head(n).setOnes();
+  w.tail(na) = msk::axisInverseMass(att, na, w.head(n));
+  msk::RadialConstraints c(att, n, 0.5);
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  finish(state, n, n);
+}
+BENCHMARK(BM_Radial)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+
+/// An n×n×n block of cubes of edge h, each cube split into 6 positively oriented Freudenthal tets.
+msk::TetMesh cubeTets(int n, double h) {
+  msk::TetMesh m;
+  const int s = n + 1;
+  m.nodes.resize(s * s * s, 3);
+  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
+  for (int k = 0; k < s; ++k)
+    for (int j = 0; j < s; ++j)
+      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
+  const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  m.tets.resize(6 * n * n * n, 4);
+  int t = 0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& order : orders) {
+          int c[3] = {i, j, k}, row[4];
+          row[0] = id(c[0], c[1], c[2]);
+          for (int a = 0; a < 3; ++a) {
+            ++c[order[a]];
+            row[a + 1] = id(c[0], c[1], c[2]);
+          }
+          if (msk::signedTetVolume(m.nodes.row(row[0]), m.nodes.row(row[1]), m.nodes.row(row[2]), m.nodes.row(row[3])) < 0)
+            std::swap(row[2], row[3]);
+          m.tets.row(t++) << row[0], row[1], row[2], row[3];
+        }
+  return m;
+}
+
+// 3-simplex internal constraints of a volume model (tets and ghosts constrained), cube block of n³ cells, 2 mm.
+void BM_VolumeSimplex(benchmark::State& state) {
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(static_cast<int>(state.range(0)), 2.0));
+  msk::VolumeSimplexConstraints c(vm, 0.5, msk::VolumeBoundary::Constrained);
+  const int n = vm.vertexCount();
+  msk::Points p = perturbed(vm.simplex.positions, 0.1, 5);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["skipped"] = c.skipped();
+  finish(state, n, n);
+}
+// 6, 13, 27, 55 cells a side: 1 728, 15 210, 126 846, 1 034 550 vertices.
+BENCHMARK(BM_VolumeSimplex)->Arg(6)->Arg(13)->Arg(27)->Arg(55)->Unit(benchmark::kMicrosecond)->Complexity();
+
+}  // namespace
+
+BENCHMARK_MAIN();
