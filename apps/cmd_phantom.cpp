@@ -1,21 +1,25 @@
-// mskseg phantom: a synthetic T1-weighted thigh MRI with exact ground truth.
+// mskseg phantom: a synthetic T1-weighted thigh MRI (or both thighs and lower legs) with exact ground truth.
 #include <iostream>
 
 #include "args.h"
 #include "commands.h"
 #include "msk/imaging/mesh_io.h"
+#include "msk/segmentation/multi_phantom.h"
 #include "msk/segmentation/phantom.h"
 
 namespace msk::cli {
 
 int cmdPhantom(const std::vector<std::string>& argv) {
-  Args args(argv, {"seed", "out", "spacing", "oblique", "noise", "bias", "vertices", "mesh-space"}, {"help"});
+  Args args(argv, {"seed", "out", "spacing", "oblique", "noise", "bias", "vertices", "mesh-space", "structures"}, {"help"});
   if (args.has("help")) {
     std::cout << "usage: mskseg phantom --seed N --out DIR [--spacing 1.2,1.2,3] [--oblique ax,ay,az]\n"
-                 "                      [--noise SIGMA] [--bias B] [--vertices N] [--mesh-space lps|ras]\n\n"
+                 "                      [--noise SIGMA] [--bias B] [--vertices N] [--mesh-space lps|ras]\n"
+                 "                      [--structures 4|24]\n\n"
                  "Writes a synthetic T1-weighted thigh MRI with exact ground truth into DIR: image.nii.gz,\n"
                  "labels.nii.gz, truth_<name>.vtk (this seed's anatomy), template_<name>.vtk (mean anatomy)\n"
                  "and scene.json. Anatomy (position, bend, radii, twist, septa) varies with the seed.\n"
+                 "  --structures  4: one right thigh (femur, quadriceps, hamstrings, adductors; default);\n"
+                 "                24: both thighs and both lower legs, each a bone wrapped by five muscles\n"
                  "  --spacing   voxel size in mm along i,j,k            (default 1.2,1.2,3)\n"
                  "  --oblique   grid rotation in degrees about x,y,z    (default 0,0,0)\n"
                  "  --noise     Rician noise sigma, fraction of fat     (default 0.03)\n"
@@ -38,8 +42,13 @@ int cmdPhantom(const std::vector<std::string>& argv) {
     throw ParameterError("--vertices", std::to_string(vertices), "must be in 100..1000000");
   opts.meshVertices = static_cast<int>(vertices);
   opts.meshSpace = parseMeshSpace(args.str("mesh-space", "lps"));
+  const long structures = args.integer("structures", 4);
+  if (structures != 4 && structures != kMultiPhantomStructures)
+    throw ParameterError("--structures", std::to_string(structures),
+                         "must be 4 (thigh) or " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs)");
   const std::string out = args.str("out");
-  Phantom p = makePhantom(opts, stderrProgress("phantom"));
+  Phantom p = structures == 4 ? makePhantom(opts, stderrProgress("phantom"))
+                              : makeMultiPhantom(opts, stderrProgress("phantom"));
   writeFolderAtomically(out, [&](const std::string& staging) { writePhantom(p, opts, staging); });
   std::cout << "phantom seed " << opts.seed << " written to " << out << " (" << p.objects.size() << " objects:";
   for (const auto& o : p.objects) std::cout << " " << o.name << "=" << o.label;
