@@ -22,6 +22,8 @@ int cmdTemplate(const std::vector<std::string>& args);
 
 /// mskseg segment: evolve a scene's templates into an image.
 int cmdSegment(const std::vector<std::string>& args);
+/// mskseg bench: benchmarks printing figures, one subcommand each (bench scene: multi-structure phantom scene).
+int cmdBench(const std::vector<std::string>& args);
 
 /// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
 ProgressFn stderrProgress(const std::string& task);
