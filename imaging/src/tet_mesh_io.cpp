@@ -1,0 +1,180 @@
+// Tet mesh files through VTK's XML unstructured-grid reader and writer (VTK confined to this file).
+#include "msk/imaging/tet_mesh_io.h"
+
+#include <vtkCallbackCommand.h>
+#include <vtkCellArray.h>
+#include <vtkCellType.h>
+#include <vtkCommand.h>
+#include <vtkFieldData.h>
+#include <vtkIdList.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkStringArray.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkXMLUnstructuredGridReader.h>
+#include <vtkXMLUnstructuredGridWriter.h>
+
+#include <filesystem>
+#include <string>
+
+#include "msk/core/atomic_file.h"
+#include "msk/core/error.h"
+
+namespace fs = std::filesystem;
+
+namespace msk {
+
+namespace {
+
+/// For one VTK read or write: global error printing off (libraries never print) and the first error or warning
+/// that `algorithm` reports kept, so a failure is detected even when VTK returns an empty output.
+class VtkErrorTrap {
+ public:
+  explicit VtkErrorTrap(vtkAlgorithm* algorithm)
+      : algorithm_(algorithm), wasDisplayed_(vtkObject::GetGlobalWarningDisplay()) {
+    vtkObject::GlobalWarningDisplayOff();
+    callback_->SetClientData(this);
+    callback_->SetCallback(&VtkErrorTrap::record);
+    errorTag_ = algorithm_->AddObserver(vtkCommand::ErrorEvent, callback_);
+  }
+  ~VtkErrorTrap() {
+    algorithm_->RemoveObserver(errorTag_);
+    vtkObject::SetGlobalWarningDisplay(wasDisplayed_);
+  }
+  VtkErrorTrap(const VtkErrorTrap&) = delete;
+  VtkErrorTrap& operator=(const VtkErrorTrap&) = delete;
+  /// True if an error was reported.
+  bool failed() const { return failed_; }
+  /// The first error message (first line only), possibly empty.
+  const std::string& message() const { return message_; }
+
+ private:
+  static void record(vtkObject*, unsigned long, void* self, void* text) {
+    auto* trap = static_cast<VtkErrorTrap*>(self);
+    if (trap->failed_) return;
+    trap->failed_ = true;
+    if (text) {
+      trap->message_ = static_cast<const char*>(text);
+      trap->message_ = trap->message_.substr(0, trap->message_.find('\n'));
+    }
+  }
+  vtkAlgorithm* algorithm_;
+  int wasDisplayed_;
+  vtkNew<vtkCallbackCommand> callback_;
+  unsigned long errorTag_ = 0;
+  bool failed_ = false;
+  std::string message_;
+};
+
+void checkExtension(const std::string& path) {
+  if (fileExtension(path) != ".vtu")
+    throw IoError(path, "unsupported tetrahedral mesh format '" + fileExtension(path) + "' (use .vtu)");
+}
+
+/// RAS ↔ LPS: x and y change sign (the map is its own inverse).
+Points flipped(const Points& p) {
+  Points q = p;
+  q.col(0) = -q.col(0);
+  q.col(1) = -q.col(1);
+  return q;
+}
+
+}  // namespace
+
+void writeTetMesh(const std::string& path, const TetMesh& rasMesh, MeshSpace space) {
+  checkExtension(path);
+  const std::string problem = tetMeshProblem(rasMesh);
+  if (!problem.empty()) throw IoError(path, "refusing to write an invalid tetrahedral mesh: " + problem);
+  const Points nodes = space == MeshSpace::LPS ? flipped(rasMesh.nodes) : rasMesh.nodes;
+
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(nodes.rows());
+  for (Eigen::Index i = 0; i < nodes.rows(); ++i) points->SetPoint(i, nodes(i, 0), nodes(i, 1), nodes(i, 2));
+  vtkNew<vtkCellArray> cells;
+  cells->AllocateExact(rasMesh.tetCount(), 4 * static_cast<vtkIdType>(rasMesh.tetCount()));
+  for (int t = 0; t < rasMesh.tetCount(); ++t) {
+    const vtkIdType ids[4] = {rasMesh.tets(t, 0), rasMesh.tets(t, 1), rasMesh.tets(t, 2), rasMesh.tets(t, 3)};
+    cells->InsertNextCell(4, ids);
+  }
+  vtkNew<vtkUnstructuredGrid> grid;
+  grid->SetPoints(points);
+  grid->SetCells(VTK_TETRA, cells);
+  vtkNew<vtkStringArray> tag;
+  tag->SetName("SPACE");
+  tag->InsertNextValue(meshSpaceName(space));
+  grid->GetFieldData()->AddArray(tag);
+
+  writeAtomically(path, [&](const std::string& tmp) {
+    vtkNew<vtkXMLUnstructuredGridWriter> w;
+    VtkErrorTrap trap(w);
+    w->SetInputData(grid);
+    w->SetFileName(tmp.c_str());
+    w->SetDataModeToAppended();
+    w->EncodeAppendedDataOff();  // raw binary
+    const int ok = w->Write();
+    if (!ok || w->GetErrorCode() != 0 || trap.failed())
+      throw IoError(path, "VTK could not write the file" + (trap.message().empty() ? "" : ": " + trap.message()));
+  });
+}
+
+TetMesh readTetMesh(const std::string& path, MeshSpace* fileSpace) {
+  checkExtension(path);
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw IoError(path, "file does not exist");
+  if (!fs::is_regular_file(path, ec)) throw IoError(path, "not a regular file");
+
+  TetMesh mesh;
+  MeshSpace space = MeshSpace::LPS;  // untagged files are LPS
+  try {
+    vtkNew<vtkXMLUnstructuredGridReader> r;
+    VtkErrorTrap trap(r);
+    r->SetFileName(path.c_str());
+    r->Update();
+    vtkUnstructuredGrid* grid = r->GetOutput();
+    if (trap.failed() || r->GetErrorCode() != 0 || !grid || grid->GetNumberOfPoints() == 0 ||
+        grid->GetNumberOfCells() == 0)
+      throw IoError(path, "cannot read the file as a VTK XML unstructured grid (unreadable, corrupt or empty)" +
+                              (trap.message().empty() ? "" : std::string(": ") + trap.message()));
+
+    if (vtkFieldData* fd = grid->GetFieldData())
+      if (auto* s = vtkStringArray::SafeDownCast(fd->GetAbstractArray("SPACE")); s && s->GetNumberOfValues() > 0) {
+        const std::string value = s->GetValue(0);
+        try {
+          space = parseMeshSpace(value);
+        } catch (const ParameterError&) {
+          throw IoError(path, "unknown coordinate space '" + value + "' in field data SPACE (expected LPS or RAS)");
+        }
+      }
+
+    const vtkIdType n = grid->GetNumberOfPoints(), cellCount = grid->GetNumberOfCells();
+    mesh.nodes.resize(n, 3);
+    for (vtkIdType i = 0; i < n; ++i) {
+      double p[3];
+      grid->GetPoint(i, p);
+      mesh.nodes.row(i) << p[0], p[1], p[2];
+    }
+    mesh.tets.resize(cellCount, 4);
+    vtkNew<vtkIdList> ids;
+    for (vtkIdType c = 0; c < cellCount; ++c) {
+      if (grid->GetCellType(c) != VTK_TETRA)
+        throw IoError(path, "cell " + std::to_string(c) + " is not a tetrahedron (VTK cell type " +
+                                std::to_string(grid->GetCellType(c)) + ")");
+      grid->GetCellPoints(c, ids);
+      for (int k = 0; k < 4; ++k) mesh.tets(c, k) = static_cast<int>(ids->GetId(k));
+    }
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {  // e.g. std::bad_alloc from a garbage count inside VTK
+    throw IoError(path, std::string("cannot read the file: ") + e.what());
+  }
+
+  if (!mesh.nodes.allFinite()) throw IoError(path, "node coordinates are not finite (NaN or infinity)");
+  if (space == MeshSpace::LPS) mesh.nodes = flipped(mesh.nodes);
+  const std::string problem = tetMeshProblem(mesh);
+  if (!problem.empty()) throw IoError(path, "not a valid tetrahedral mesh: " + problem);
+  if (fileSpace) *fileSpace = space;
+  return mesh;
+}
+
+}  // namespace msk
