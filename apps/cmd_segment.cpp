@@ -125,8 +125,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
     Json pairs = Json::array();
     for (size_t k = 0; k < scene.collisions.size(); ++k) {
       Json pj;
-      pj["objects"] = Json(Json::Array{scene.objects[static_cast<size_t>(scene.collisions[k].first)].name,
-                                       scene.objects[static_cast<size_t>(scene.collisions[k].second)].name});
+      pj["objects"] = Json(Json::Array{scene.objects[static_cast<size_t>(scene.collisions[k].a)].name,
+                                       scene.objects[static_cast<size_t>(scene.collisions[k].b)].name});
       if (k < res.pairPenetrationMm.size()) pj["max_penetration_mm"] = res.pairPenetrationMm[k];
       pairs.push(pj);
     }

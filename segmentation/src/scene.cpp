@@ -8,6 +8,7 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
+#include "msk/segmentation/surface_proximity.h"
 
 namespace fs = std::filesystem;
 
@@ -16,7 +17,13 @@ namespace msk {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"objects", "collisions", "phantom", "description"};
-const std::vector<std::string> kObjectKeys = {"name", "label", "kind", "template", "polarity", "force"};
+const std::vector<std::string> kObjectKeys = {"name", "label", "kind", "template", "polarity", "force", "model"};
+const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
+                                             "image_force",     "medial_axis",        "radial_stiffness",
+                                             "axis_spacing_mm", "volumetric",         "volume_stiffness"};
+const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction", "mode", "target"};
+const std::vector<std::string> kForces = {"gradient", "profile"};
+constexpr double kAutoWithinMm = 2.0;  // "collisions": "auto"
 
 std::string joined(const std::vector<std::string>& words) {
   std::string s;
@@ -66,6 +73,31 @@ class Checker {
       fail(where, "\"" + key + "\" must be one of " + joined(choices) + ", found \"" + *s + "\"");
     return static_cast<int>(it - choices.begin());
   }
+  /// An optional boolean member (nullptr if absent).
+  const bool* boolean(const Json& obj, const std::string& key, const std::string& where, bool* store) const {
+    const Json* v = obj.find(key);
+    if (!v) return nullptr;
+    if (!v->isBool()) fail(where, "\"" + key + "\" must be true or false, found " + v->typeName() + " " + shown(*v));
+    *store = v->asBool();
+    return store;
+  }
+  /// Range of an optional number.
+  enum class Range { UnitInterval, NonNegative, Positive };
+  /// An optional finite number member in `range`; `*store` set and true if present.
+  bool number(const Json& obj, const std::string& key, Range range, const std::string& where, double* store) const {
+    const Json* v = obj.find(key);
+    if (!v) return false;
+    const char* wanted = range == Range::UnitInterval  ? "a number in [0, 1]"
+                         : range == Range::NonNegative ? "a number >= 0"
+                                                       : "a number > 0";
+    const double x = v->isNumber() ? v->asNumber() : std::nan("");
+    const bool ok = std::isfinite(x) && (range == Range::UnitInterval  ? x >= 0 && x <= 1
+                                         : range == Range::NonNegative ? x >= 0
+                                                                       : x > 0);
+    if (!ok) fail(where, "\"" + key + "\" must be " + wanted + ", found " + shown(*v));
+    *store = x;
+    return true;
+  }
 
  private:
   std::string path_;
@@ -77,7 +109,118 @@ std::string objectWhere(size_t i, const std::string& name) {
   return w;
 }
 
+/// The object's "model" entry applied over defaultModel(kind). "force" (object level) is a synonym of "image_force";
+/// either one also sets obj.hasForce / obj.force (read by the segmenter).
+ObjectModel parseModel(const Checker& check, const Json& o, const std::string& where, SceneObject& obj) {
+  ObjectModel m = defaultModel(obj.kind);
+  const std::string at = where + " model";
+  const Json empty = Json::object();
+  const Json* model = o.find("model");
+  if (!model) model = &empty;
+  if (!model->isObject())
+    check.fail(at, std::string("expected an object, found ") + model->typeName() + " " + shown(*model));
+  check.knownKeys(*model, kModelKeys, at, "key");
+
+  if (const Json* v = model->find("shape_memory")) {
+    if (v->isBool() && !v->asBool()) {
+      m.shapeMemory.reset();
+    } else {
+      if (!v->isString() || (v->asString() != "template" && v->asString() != "smoothing"))
+        check.fail(at, "\"shape_memory\" must be \"template\", \"smoothing\" or false, found " + shown(*v));
+      m.shapeMemory = v->asString() == "template" ? InternalMode::ShapeMemory : InternalMode::Smoothing;
+    }
+  }
+  const bool stiffness =
+      check.number(*model, "internal_stiffness", Checker::Range::UnitInterval, at, &m.internalStiffness);
+  if (stiffness && !m.shapeMemory)
+    check.fail(at, "\"internal_stiffness\" is given but \"shape_memory\" is false (no internal constraint)");
+
+  if (const Json* v = model->find("global_prior")) {
+    const std::vector<std::string> priors = {"rigid", "similarity", "affine"};
+    if (v->isBool() && !v->asBool()) {
+      m.globalPrior = false;
+      m.priorTransform.reset();
+    } else {
+      const auto it = v->isString() ? std::find(priors.begin(), priors.end(), v->asString()) : priors.end();
+      if (it == priors.end())
+        check.fail(at, "\"global_prior\" must be one of rigid, similarity, affine or false, found " + shown(*v));
+      m.globalPrior = true;
+      m.priorTransform = it == priors.begin()       ? PriorTransform::Rigid
+                         : it == priors.begin() + 1 ? PriorTransform::Similarity
+                                                    : PriorTransform::Affine;
+    }
+  }
+
+  const int force = check.choice(o, "force", kForces, where, false);
+  const int imageForce = check.choice(*model, "image_force", kForces, at, false);
+  if (imageForce >= 0 && force >= 0)
+    check.fail(where, "both \"force\" and model \"image_force\" are given (they are synonyms: keep one)");
+  if (const int f = imageForce >= 0 ? imageForce : force; f >= 0) {
+    m.imageForce = f == 0 ? TargetMode::Gradient : TargetMode::Profile;
+    obj.hasForce = true;
+    obj.force = m.imageForce;
+  }
+
+  check.boolean(*model, "medial_axis", at, &m.medialAxis);
+  const bool radial = check.number(*model, "radial_stiffness", Checker::Range::UnitInterval, at, &m.radialStiffness);
+  const bool spacing = check.number(*model, "axis_spacing_mm", Checker::Range::Positive, at, &m.axisSpacingMm);
+  if ((radial || spacing) && !m.medialAxis)
+    check.fail(at, std::string("\"") + (radial ? "radial_stiffness" : "axis_spacing_mm") +
+                       "\" is given but the object has no medial axis (set \"medial_axis\": true)");
+
+  check.boolean(*model, "volumetric", at, &m.volumetric);
+  if (check.number(*model, "volume_stiffness", Checker::Range::UnitInterval, at, &m.volumeStiffness) && !m.volumetric)
+    check.fail(at, "\"volume_stiffness\" is given but the object has no volume model (set \"volumetric\": true)");
+  return m;
+}
+
+/// The optional pair parameters of a collision entry (object form) into `p`.
+void parsePairParameters(const Checker& check, const Json& e, const std::string& where, CollisionPair& p) {
+  check.number(e, "gap_mm", Checker::Range::NonNegative, where, &p.gapMm);
+  check.number(e, "proximity_mm", Checker::Range::Positive, where, &p.proximityMm);
+  check.number(e, "friction", Checker::Range::UnitInterval, where, &p.friction);
+  if (const int m = check.choice(e, "mode", {"position", "velocity", "acceleration"}, where, false); m >= 0)
+    p.mode = static_cast<CollisionMode>(m);
+  if (const int t = check.choice(e, "target", {"spring", "reaction", "reference"}, where, false); t >= 0)
+    p.target = static_cast<CollisionTarget>(t);
+}
+
 }  // namespace
+
+ObjectModel defaultModel(ObjectKind k) {
+  // Every kind gets what the segmenter does today; muscles will get a medial axis and a volume model (and possibly
+  // the profile force) once the pipeline uses them: change it here, in one place.
+  ObjectModel m;
+  switch (k) {
+    case ObjectKind::Bone:
+    case ObjectKind::Muscle:
+    case ObjectKind::Generic:
+      m.shapeMemory = InternalMode::ShapeMemory;
+      m.imageForce = TargetMode::Gradient;
+      m.medialAxis = false;
+      m.volumetric = false;
+      break;
+  }
+  return m;
+}
+
+const char* collisionModeName(CollisionMode m) {
+  switch (m) {
+    case CollisionMode::Position: return "position";
+    case CollisionMode::Velocity: return "velocity";
+    case CollisionMode::Acceleration: return "acceleration";
+  }
+  return "?";
+}
+
+const char* collisionTargetName(CollisionTarget t) {
+  switch (t) {
+    case CollisionTarget::Spring: return "spring";
+    case CollisionTarget::Reaction: return "reaction";
+    case CollisionTarget::Reference: return "reference";
+  }
+  return "?";
+}
 
 const char* objectKindName(ObjectKind k) {
   switch (k) {
@@ -109,7 +252,6 @@ Scene parseScene(const Json& json, const std::string& path) {
   std::map<int, size_t> byLabel;
   const std::vector<std::string> kinds = {"bone", "muscle", "generic"};
   const std::vector<std::string> polarities = {"auto", "dark-inside", "bright-inside"};
-  const std::vector<std::string> forces = {"gradient", "profile"};
   for (size_t i = 0; i < objects->asArray().size(); ++i) {
     const Json& o = objects->asArray()[i];
     if (!o.isObject()) check.fail(objectWhere(i, ""), std::string("expected an object, found ") + o.typeName());
@@ -143,37 +285,78 @@ Scene parseScene(const Json& json, const std::string& path) {
       obj.hasPolarity = true;
       obj.polarity = p == 0 ? Polarity::Auto : p == 1 ? Polarity::DarkInside : Polarity::BrightInside;
     }
-    if (const int f = check.choice(o, "force", forces, where, false); f >= 0) {
-      obj.hasForce = true;
-      obj.force = f == 0 ? TargetMode::Gradient : TargetMode::Profile;
-    }
+    obj.model = parseModel(check, o, where, obj);
     scene.objects.push_back(std::move(obj));
   }
 
-  // Collisions: pairs of distinct known names; duplicates in either order collapse to one pair (i < j).
+  // Collisions: entries checked before any template is read; auto pairs found after.
+  std::map<std::pair<int, int>, size_t> declared;  // pair → entry that declared it
+  bool wantAuto = false;
+  double autoWithinMm = kAutoWithinMm;
+  CollisionPair autoParameters;
   if (const Json* col = json.find("collisions")) {
-    if (!col->isArray()) check.fail("", std::string("\"collisions\" must be an array, found ") + col->typeName());
-    std::set<std::pair<int, int>> seen;
-    for (size_t c = 0; c < col->asArray().size(); ++c) {
-      const Json& pair = col->asArray()[c];
-      const std::string where = "collisions[" + std::to_string(c) + "]";
-      if (!pair.isArray() || pair.size() != 2 || !pair.asArray()[0].isString() || !pair.asArray()[1].isString())
-        check.fail(where, "expected a pair of object names like [\"femur\", \"quadriceps\"], found " + shown(pair));
+    if (col->isString()) {
+      if (col->asString() != "auto")
+        check.fail("", "\"collisions\" must be an array or \"auto\", found " + shown(*col));
+      wantAuto = true;
+    } else if (!col->isArray()) {
+      check.fail("", std::string("\"collisions\" must be an array or \"auto\", found ") + col->typeName());
+    }
+    const Json::Array none;
+    const Json::Array& entries = col->isArray() ? col->asArray() : none;
+    size_t autoEntry = 0;
+    auto names = [&] {
+      std::vector<std::string> all;
+      for (const auto& o : scene.objects) all.push_back(o.name);
+      return joined(all);
+    };
+    for (size_t c = 0; c < entries.size(); ++c) {
+      const Json& e = entries[c];
+      std::string where = "collisions[" + std::to_string(c) + "]";
+      if (e.isObject() && e.find("auto")) {
+        std::vector<std::string> known = {"auto", "within_mm"};
+        known.insert(known.end(), kPairParameterKeys.begin(), kPairParameterKeys.end());
+        check.knownKeys(e, known, where, "key");
+        const Json& flag = *e.find("auto");
+        if (!flag.isBool() || !flag.asBool())
+          check.fail(where, "\"auto\" must be true (leave the entry out for no automatic pairs), found " + shown(flag));
+        if (wantAuto)
+          check.fail(where, "a second \"auto\" entry (also collisions[" + std::to_string(autoEntry) + "]): keep one");
+        wantAuto = true;
+        autoEntry = c;
+        check.number(e, "within_mm", Checker::Range::NonNegative, where, &autoWithinMm);
+        parsePairParameters(check, e, where, autoParameters);
+        continue;
+      }
+      const Json* pair = &e;
+      if (e.isObject()) {
+        if (!e.find("pair")) check.fail(where, "an object entry needs \"pair\": [\"a\", \"b\"] or \"auto\": true");
+        pair = e.find("pair");
+      }
+      if (!pair->isArray() || pair->size() != 2 || !pair->asArray()[0].isString() || !pair->asArray()[1].isString())
+        check.fail(where, "expected a pair of object names like [\"femur\", \"quadriceps\"], found " + shown(*pair));
+      where += " (" + pair->asArray()[0].asString() + ", " + pair->asArray()[1].asString() + ")";
       int idx[2];
       for (int s = 0; s < 2; ++s) {
-        const std::string& n = pair.asArray()[s].asString();
+        const std::string& n = pair->asArray()[s].asString();
         auto it = byName.find(n);
-        if (it == byName.end()) {
-          std::vector<std::string> names;
-          for (const auto& o : scene.objects) names.push_back(o.name);
-          check.fail(where, "unknown object \"" + n + "\" (objects: " + joined(names) + ")");
-        }
+        if (it == byName.end()) check.fail(where, "unknown object \"" + n + "\" (objects: " + names() + ")");
         idx[s] = static_cast<int>(it->second);
       }
       if (idx[0] == idx[1])
         check.fail(where, "an object cannot collide with itself (\"" + scene.objects[idx[0]].name + "\")");
-      const std::pair<int, int> p(std::min(idx[0], idx[1]), std::max(idx[0], idx[1]));
-      if (seen.insert(p).second) scene.collisions.push_back(p);
+      CollisionPair p;
+      p.a = std::min(idx[0], idx[1]);
+      p.b = std::max(idx[0], idx[1]);
+      if (e.isObject()) {
+        std::vector<std::string> known = {"pair"};
+        known.insert(known.end(), kPairParameterKeys.begin(), kPairParameterKeys.end());
+        check.knownKeys(e, known, where, "key");
+        parsePairParameters(check, e, where, p);
+      }
+      const auto [it, fresh] = declared.emplace(std::make_pair(p.a, p.b), c);
+      if (!fresh) check.fail(where, "pair declared twice (also collisions[" + std::to_string(it->second) + "])");
+      scene.collisions.push_back(p);
     }
   }
 
@@ -186,6 +369,20 @@ Scene parseScene(const Json& json, const std::string& path) {
       check.fail(objectWhere(i, obj.name), "template " + e.file() + ": " + e.problem());
     } catch (const Error& e) {
       check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + e.what());
+    }
+  }
+
+  // Auto pairs: every pair of templates within the distance (or overlapping) not declared by name.
+  if (wantAuto) {
+    std::vector<const TriangleMesh*> templates;
+    for (const auto& o : scene.objects) templates.push_back(&o.templ);
+    for (const auto& [a, b] : surfacesWithin(templates, autoWithinMm)) {
+      if (declared.count({a, b})) continue;
+      CollisionPair p = autoParameters;
+      p.a = a;
+      p.b = b;
+      p.fromAuto = true;
+      scene.collisions.push_back(p);
     }
   }
   return scene;

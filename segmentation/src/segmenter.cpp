@@ -339,8 +339,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         }
         return it->second;
       };
-      for (const auto& [a, b] : scene.collisions)
-        for (auto [u, v] : {std::pair<size_t, size_t>(a, b), std::pair<size_t, size_t>(b, a)})
+      for (const CollisionPair& pair : scene.collisions)
+        for (auto [u, v] : {std::pair<size_t, size_t>(pair.a, pair.b), std::pair<size_t, size_t>(pair.b, pair.a)})
           collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(),
                                                                    surfaceOf(v), opts.collisionGapMm, proximity,
                                                                    opts.collisionFriction));
@@ -397,8 +397,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       for (int sweep = 0; sweep < opts.collisionFinalSweeps; ++sweep)
         for (size_t k = 0; k < collide.size(); ++k) {
           // Positions change with every projection here: the partner's grid is rebuilt before each detection.
-          const auto& [a, b] = scene.collisions[k / 2];
-          surfaces.at(static_cast<size_t>(k % 2 == 0 ? b : a))->update(p);
+          const CollisionPair& pair = scene.collisions[k / 2];
+          surfaces.at(static_cast<size_t>(k % 2 == 0 ? pair.b : pair.a))->update(p);
           collide[k]->detect(p, sweep == 0);
           collide[k]->project(p, solver.inverseMass());
         }

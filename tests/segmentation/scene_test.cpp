@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <functional>
 #include <set>
 #include <string>
@@ -85,7 +86,24 @@ TEST(Scene, MinimalFormLoads) {
   ASSERT_EQ(two.objects.size(), 2u);
   EXPECT_EQ(two.objects[1].kind, msk::ObjectKind::Muscle);
   ASSERT_EQ(two.collisions.size(), 1u);
-  EXPECT_EQ(two.collisions[0], std::make_pair(0, 1));
+  const msk::CollisionPair& p = two.collisions[0];
+  EXPECT_EQ(std::make_pair(p.a, p.b), std::make_pair(0, 1));
+  // A pair given as ["a", "b"] takes the run's parameters.
+  EXPECT_LT(p.gapMm, 0);
+  EXPECT_LT(p.proximityMm, 0);
+  EXPECT_LT(p.friction, 0);
+  EXPECT_EQ(p.mode, msk::CollisionMode::Position);
+  EXPECT_EQ(p.target, msk::CollisionTarget::Spring);
+  EXPECT_FALSE(p.fromAuto);
+  // Without "model", every object gets its kind's default model.
+  for (const auto& o : two.objects) {
+    const msk::ObjectModel d = msk::defaultModel(o.kind);
+    EXPECT_EQ(o.model.shapeMemory, d.shapeMemory);
+    EXPECT_EQ(o.model.imageForce, d.imageForce);
+    EXPECT_EQ(o.model.medialAxis, d.medialAxis);
+    EXPECT_EQ(o.model.volumetric, d.volumetric);
+    EXPECT_EQ(o.model.globalPrior, d.globalPrior);
+  }
 }
 
 TEST(Scene, IssueExampleNamesUnknownCollisionObjects) {
@@ -126,16 +144,32 @@ TEST(Scene, OptionalOverridesAndMetadata) {
   EXPECT_EQ(s.metadata.at("phantom").at("seed").asInt(), 4);
 }
 
-TEST(Scene, DuplicateCollisionsCollapseToOrderedPairs) {
+namespace {
+
+// The pairs of a scene as (a, b) index pairs, in scene order.
+std::vector<std::pair<int, int>> indexPairs(const msk::Scene& s) {
+  std::vector<std::pair<int, int>> v;
+  for (const auto& p : s.collisions) v.emplace_back(p.a, p.b);
+  return v;
+}
+
+}  // namespace
+
+TEST(Scene, CollisionsAreOrderedPairsAndADuplicateIsAnError) {
   SceneFiles f;
-  const std::string text = R"({"objects": [
+  const std::string objects = R"({"objects": [
       {"name": "a", "label": 1, "kind": "bone", "template": "a.vtk"},
       {"name": "b", "label": 2, "kind": "muscle", "template": "b.vtk"},
       {"name": "c", "label": 3, "kind": "muscle", "template": "b.vtk"}],
-    "collisions": [["c", "a"], ["a", "c"], ["b", "a"], ["c", "a"], ["b", "c"]]})";
-  const msk::Scene s = msk::loadScene(f.scene(text));
+    "collisions": )";
+  const msk::Scene s = msk::loadScene(f.scene(objects + R"([["c", "a"], ["b", "a"], {"pair": ["c", "b"]}]})"));
   const std::vector<std::pair<int, int>> want = {{0, 2}, {0, 1}, {1, 2}};
-  EXPECT_EQ(s.collisions, want);
+  EXPECT_EQ(indexPairs(s), want);
+  // The same pair twice (in either order, in either form) is ambiguous about its parameters: an error.
+  expectSceneError(f.scene(objects + R"([["c", "a"], ["b", "c"], ["a", "c"]]})", "dup1.json"),
+                   {"collisions[2] (a, c): pair declared twice (also collisions[0])"});
+  expectSceneError(f.scene(objects + R"([["a", "b"], {"pair": ["b", "a"], "gap_mm": 1}]})", "dup2.json"),
+                   {"collisions[1] (b, a): pair declared twice (also collisions[0])"});
 }
 
 TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
@@ -154,7 +188,7 @@ TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
       {R"({"objects": ["femur"]})", {"objects[0]", "expected an object, found string"}},
       // The example of scene.h: a misspelt key names the object and lists the known keys.
       {twoObjects(R"(, "lable": 3)"),
-       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force)"}},
+       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model)"}},
       {R"({"objects": [{"label": 1, "kind": "bone", "template": "a.vtk"}]})", {"objects[0]: missing key \"name\""}},
       {R"({"objects": [{"name": 5, "label": 1, "kind": "bone", "template": "a.vtk"}]})",
        {"objects[0]", "\"name\" must be a string, found number 5"}},
@@ -188,12 +222,12 @@ TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
        {"objects[0] (femur): \"polarity\" must be one of auto, dark-inside, bright-inside, found \"dark\""}},
       {twoObjects(R"(, "force": 1)"), {"objects[0] (femur)", "\"force\" must be a string"}},
       {twoObjects(R"(, "force": "edges")"), {"objects[0] (femur): \"force\" must be one of gradient, profile"}},
-      {twoObjects("", "{}"), {"\"collisions\" must be an array, found object"}},
+      {twoObjects("", "{}"), {"\"collisions\" must be an array or \"auto\", found object"}},
       {twoObjects("", R"([["femur"]])"), {"collisions[0]", "expected a pair of object names"}},
       {twoObjects("", R"([["femur", "quadriceps", "femur"]])"), {"collisions[0]", "expected a pair"}},
       {twoObjects("", R"([["femur", "quadriceps"], ["femur", 2]])"), {"collisions[1]", "expected a pair"}},
       {twoObjects("", R"([["femur", "quadricep"]])"),
-       {"collisions[0]: unknown object \"quadricep\" (objects: femur, quadriceps)"}},
+       {"collisions[0] (femur, quadricep): unknown object \"quadricep\" (objects: femur, quadriceps)"}},
       {twoObjects("", R"([["femur", "femur"]])"), {"collisions[0]", "cannot collide with itself (\"femur\")"}},
   };
   for (size_t c = 0; c < cases.size(); ++c) {
@@ -243,11 +277,275 @@ TEST(Scene, GeneratedPhantomSceneLoads) {
   const msk::Scene s = msk::loadScene(dir.file("scene.json"));
   ASSERT_EQ(s.objects.size(), 4u);
   EXPECT_EQ(s.collisions.size(), 6u);
-  std::set<std::pair<int, int>> distinct(s.collisions.begin(), s.collisions.end());
+  const std::vector<std::pair<int, int>> pairs = indexPairs(s);
+  std::set<std::pair<int, int>> distinct(pairs.begin(), pairs.end());
   EXPECT_EQ(distinct.size(), 6u);
-  for (const auto& p : s.collisions) EXPECT_LT(p.first, p.second);
+  for (const auto& p : s.collisions) {
+    EXPECT_LT(p.a, p.b);
+    EXPECT_FALSE(p.fromAuto);
+  }
   for (size_t i = 0; i < s.objects.size(); ++i) {
     EXPECT_EQ(s.objects[i].label, static_cast<int>(i) + 1);
     EXPECT_EQ(msk::closedMeshProblem(s.objects[i].templ), "") << s.objects[i].name;
   }
+}
+
+TEST(Scene, DefaultModelsKeepTodaysBehaviourForEveryKind) {
+  for (msk::ObjectKind k : {msk::ObjectKind::Bone, msk::ObjectKind::Muscle, msk::ObjectKind::Generic}) {
+    SCOPED_TRACE(msk::objectKindName(k));
+    const msk::ObjectModel m = msk::defaultModel(k);
+    ASSERT_TRUE(m.shapeMemory.has_value());
+    EXPECT_EQ(*m.shapeMemory, msk::InternalMode::ShapeMemory);
+    EXPECT_LT(m.internalStiffness, 0);
+    EXPECT_TRUE(m.globalPrior);
+    EXPECT_FALSE(m.priorTransform.has_value());
+    EXPECT_EQ(m.imageForce, msk::TargetMode::Gradient);
+    EXPECT_FALSE(m.medialAxis);
+    EXPECT_LT(m.radialStiffness, 0);
+    EXPECT_LT(m.axisSpacingMm, 0);
+    EXPECT_FALSE(m.volumetric);
+    EXPECT_LT(m.volumeStiffness, 0);
+  }
+}
+
+TEST(Scene, EveryModelKeyIsReflectedInTheObject) {
+  SceneFiles f;
+  const std::string text = R"({"objects": [
+      {"name": "quad", "label": 1, "kind": "muscle", "template": "a.vtk",
+       "model": {"shape_memory": "smoothing", "internal_stiffness": 0.4, "global_prior": "affine",
+                 "image_force": "profile", "medial_axis": true, "radial_stiffness": 0.6, "axis_spacing_mm": 3.5,
+                 "volumetric": true, "volume_stiffness": 0.8}},
+      {"name": "ham", "label": 2, "kind": "muscle", "template": "b.vtk",
+       "model": {"shape_memory": false, "global_prior": false, "medial_axis": false, "volumetric": false}},
+      {"name": "femur", "label": 3, "kind": "bone", "template": "a.vtk", "force": "profile",
+       "model": {"shape_memory": "template", "global_prior": "rigid"}},
+      {"name": "other", "label": 4, "kind": "generic", "template": "b.vtk", "model": {"global_prior": "similarity"}},
+      {"name": "empty", "label": 5, "kind": "generic", "template": "b.vtk", "model": {}}]})";
+  const msk::Scene s = msk::loadScene(f.scene(text));
+  ASSERT_EQ(s.objects.size(), 5u);
+  const msk::ObjectModel& q = s.objects[0].model;
+  ASSERT_TRUE(q.shapeMemory.has_value());
+  EXPECT_EQ(*q.shapeMemory, msk::InternalMode::Smoothing);
+  EXPECT_DOUBLE_EQ(q.internalStiffness, 0.4);
+  EXPECT_TRUE(q.globalPrior);
+  ASSERT_TRUE(q.priorTransform.has_value());
+  EXPECT_EQ(*q.priorTransform, msk::PriorTransform::Affine);
+  EXPECT_EQ(q.imageForce, msk::TargetMode::Profile);
+  EXPECT_TRUE(s.objects[0].hasForce);  // "image_force" is what the segmenter reads as the object's force
+  EXPECT_EQ(s.objects[0].force, msk::TargetMode::Profile);
+  EXPECT_TRUE(q.medialAxis);
+  EXPECT_DOUBLE_EQ(q.radialStiffness, 0.6);
+  EXPECT_DOUBLE_EQ(q.axisSpacingMm, 3.5);
+  EXPECT_TRUE(q.volumetric);
+  EXPECT_DOUBLE_EQ(q.volumeStiffness, 0.8);
+
+  const msk::ObjectModel& h = s.objects[1].model;
+  EXPECT_FALSE(h.shapeMemory.has_value());
+  EXPECT_FALSE(h.globalPrior);
+  EXPECT_FALSE(h.priorTransform.has_value());
+  EXPECT_FALSE(h.medialAxis);
+  EXPECT_FALSE(h.volumetric);
+  EXPECT_FALSE(s.objects[1].hasForce);
+  EXPECT_EQ(h.imageForce, msk::TargetMode::Gradient);
+
+  // The object-level "force" is the same setting as "image_force".
+  const msk::ObjectModel& b = s.objects[2].model;
+  EXPECT_EQ(b.imageForce, msk::TargetMode::Profile);
+  EXPECT_TRUE(s.objects[2].hasForce);
+  EXPECT_EQ(*b.shapeMemory, msk::InternalMode::ShapeMemory);
+  EXPECT_EQ(*b.priorTransform, msk::PriorTransform::Rigid);
+  EXPECT_EQ(*s.objects[3].model.priorTransform, msk::PriorTransform::Similarity);
+  // An empty "model" is the kind's default.
+  EXPECT_EQ(s.objects[4].model.shapeMemory, msk::defaultModel(msk::ObjectKind::Generic).shapeMemory);
+  EXPECT_FALSE(s.objects[4].model.priorTransform.has_value());
+  EXPECT_LT(s.objects[4].model.internalStiffness, 0);
+}
+
+TEST(Scene, EveryKindOfBadModelOrPairValueNamesTheKeyAndTheObject) {
+  SceneFiles f;
+  struct Case {
+    std::string text;
+    std::vector<std::string> phrases;
+  };
+  const std::string m = R"(, "model": )";
+  const std::vector<Case> cases = {
+      {twoObjects(m + "[]"), {"objects[0] (femur) model: expected an object, found array"}},
+      {twoObjects(m + R"({"shape_memmory": "template"})"),
+       {"objects[0] (femur) model: unknown key \"shape_memmory\"", "known: shape_memory, internal_stiffness"}},
+      {twoObjects(m + R"({"shape_memory": "memory"})"),
+       {"objects[0] (femur) model: \"shape_memory\" must be \"template\", \"smoothing\" or false, found \"memory\""}},
+      {twoObjects(m + R"({"shape_memory": true})"), {"objects[0] (femur) model", "\"shape_memory\"", "found true"}},
+      {twoObjects(m + R"({"internal_stiffness": 1.5})"),
+       {"objects[0] (femur) model: \"internal_stiffness\" must be a number in [0, 1], found 1.5"}},
+      {twoObjects(m + R"({"internal_stiffness": -0.1})"),
+       {"objects[0] (femur) model", "\"internal_stiffness\"", "-0.1"}},
+      {twoObjects(m + R"({"internal_stiffness": "stiff"})"),
+       {"objects[0] (femur) model", "\"internal_stiffness\" must be a number in [0, 1], found \"stiff\""}},
+      {twoObjects(m + R"({"shape_memory": false, "internal_stiffness": 0.5})"),
+       {"objects[0] (femur) model: \"internal_stiffness\" is given but \"shape_memory\" is false"}},
+      {twoObjects(m + R"({"global_prior": "euclidean"})"),
+       {"objects[0] (femur) model: \"global_prior\" must be one of rigid, similarity, affine or false, found "
+        "\"euclidean\""}},
+      {twoObjects(m + R"({"global_prior": true})"), {"objects[0] (femur) model", "\"global_prior\"", "found true"}},
+      {twoObjects(m + R"({"image_force": "edges"})"),
+       {"objects[0] (femur) model: \"image_force\" must be one of gradient, profile, found \"edges\""}},
+      {twoObjects(R"(, "force": "gradient")" + m + R"({"image_force": "gradient"})"),
+       {"objects[0] (femur): both \"force\" and model \"image_force\" are given"}},
+      {twoObjects(m + R"({"medial_axis": "yes"})"),
+       {"objects[0] (femur) model: \"medial_axis\" must be true or false, found string \"yes\""}},
+      {twoObjects(m + R"({"medial_axis": true, "radial_stiffness": 2})"),
+       {"objects[0] (femur) model: \"radial_stiffness\" must be a number in [0, 1], found 2"}},
+      {twoObjects(m + R"({"medial_axis": true, "axis_spacing_mm": 0})"),
+       {"objects[0] (femur) model: \"axis_spacing_mm\" must be a number > 0, found 0"}},
+      {twoObjects(m + R"({"radial_stiffness": 0.5})"),
+       {"objects[0] (femur) model: \"radial_stiffness\" is given but the object has no medial axis"}},
+      {twoObjects(m + R"({"axis_spacing_mm": 4})"),
+       {"objects[0] (femur) model: \"axis_spacing_mm\" is given but the object has no medial axis"}},
+      {twoObjects(m + R"({"volumetric": 1})"),
+       {"objects[0] (femur) model: \"volumetric\" must be true or false, found number 1"}},
+      {twoObjects(m + R"({"volumetric": true, "volume_stiffness": -1})"),
+       {"objects[0] (femur) model: \"volume_stiffness\" must be a number in [0, 1], found -1"}},
+      {twoObjects(m + R"({"volume_stiffness": 0.5})"),
+       {"objects[0] (femur) model: \"volume_stiffness\" is given but the object has no volume model"}},
+      // Collision entries.
+      {twoObjects("", R"("manual")"), {"\"collisions\" must be an array or \"auto\", found \"manual\""}},
+      {twoObjects("", R"([{"gap_mm": 1}])"), {"collisions[0]: an object entry needs \"pair\""}},
+      {twoObjects("", R"([{"pair": ["femur"]}])"), {"collisions[0]", "expected a pair of object names"}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "gap": 1}])"),
+       {"collisions[0] (femur, quadriceps): unknown key \"gap\" (known: pair, gap_mm, proximity_mm, friction, mode, "
+        "target)"}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "gap_mm": -1}])"),
+       {"collisions[0] (femur, quadriceps): \"gap_mm\" must be a number >= 0, found -1"}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "proximity_mm": 0}])"),
+       {"collisions[0] (femur, quadriceps): \"proximity_mm\" must be a number > 0, found 0"}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "friction": 1.5}])"),
+       {"collisions[0] (femur, quadriceps): \"friction\" must be a number in [0, 1], found 1.5"}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "mode": "impulse"}])"),
+       {"collisions[0] (femur, quadriceps): \"mode\" must be one of position, velocity, acceleration, found "
+        "\"impulse\""}},
+      {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "target": "wall"}])"),
+       {"collisions[0] (femur, quadriceps): \"target\" must be one of spring, reaction, reference, found \"wall\""}},
+      {twoObjects("", R"([{"pair": ["femur", "quads"]}])"),
+       {"collisions[0] (femur, quads): unknown object \"quads\" (objects: femur, quadriceps)"}},
+      {twoObjects("", R"([{"auto": false}])"), {"collisions[0]: \"auto\" must be true", "found false"}},
+      {twoObjects("", R"([{"auto": true, "pair": ["femur", "quadriceps"]}])"),
+       {"collisions[0]: unknown key \"pair\" (known: auto, within_mm, gap_mm"}},
+      {twoObjects("", R"([{"auto": true, "within_mm": -2}])"),
+       {"collisions[0]: \"within_mm\" must be a number >= 0, found -2"}},
+      {twoObjects("", R"([{"auto": true, "friction": 2}])"),
+       {"collisions[0]: \"friction\" must be a number in [0, 1]"}},
+      {twoObjects("", R"([{"auto": true}, ["femur", "quadriceps"], {"auto": true, "within_mm": 1}])"),
+       {"collisions[2]: a second \"auto\" entry (also collisions[0])"}},
+  };
+  for (size_t c = 0; c < cases.size(); ++c) {
+    SCOPED_TRACE("case " + std::to_string(c) + ": " + cases[c].text);
+    expectSceneError(f.scene(cases[c].text, "model" + std::to_string(c) + ".json"), cases[c].phrases);
+  }
+}
+
+TEST(Scene, PairParametersAreReflected) {
+  SceneFiles f;
+  const msk::Scene s = msk::loadScene(f.scene(twoObjects(
+      "", R"([{"pair": ["quadriceps", "femur"], "gap_mm": 0, "proximity_mm": 1.5, "friction": 0.25,
+               "mode": "acceleration", "target": "reference"}])")));
+  ASSERT_EQ(s.collisions.size(), 1u);
+  const msk::CollisionPair& p = s.collisions[0];
+  EXPECT_EQ(std::make_pair(p.a, p.b), std::make_pair(0, 1));
+  EXPECT_EQ(p.gapMm, 0.0);
+  EXPECT_EQ(p.proximityMm, 1.5);
+  EXPECT_EQ(p.friction, 0.25);
+  EXPECT_EQ(p.mode, msk::CollisionMode::Acceleration);
+  EXPECT_EQ(p.target, msk::CollisionTarget::Reference);
+  EXPECT_FALSE(p.fromAuto);
+  EXPECT_STREQ(msk::collisionModeName(msk::CollisionMode::Velocity), "velocity");
+  EXPECT_STREQ(msk::collisionModeName(p.mode), "acceleration");
+  EXPECT_STREQ(msk::collisionTargetName(msk::CollisionTarget::Reaction), "reaction");
+  EXPECT_STREQ(msk::collisionTargetName(p.target), "reference");
+  EXPECT_STREQ(msk::collisionModeName(msk::CollisionMode::Position), "position");
+  EXPECT_STREQ(msk::collisionTargetName(msk::CollisionTarget::Spring), "spring");
+}
+
+namespace {
+
+// Three spheres of radius 10: "near1" at the origin, "near2" 21 mm away along x (1 mm apart), "far" 40 mm away
+// along y (20 mm apart from near1).
+std::string threeSpheres(const ScratchDir& dir, const std::string& collisions) {
+  msk::writeMesh(dir.file("s1.vtk"), msk::makeIcosphere(10, 3), msk::MeshSpace::RAS);
+  msk::writeMesh(dir.file("s2.vtk"), msk::makeIcosphere(10, 3, Eigen::Vector3d(21, 0, 0)), msk::MeshSpace::RAS);
+  msk::writeMesh(dir.file("s3.vtk"), msk::makeIcosphere(10, 3, Eigen::Vector3d(0, 40, 0)), msk::MeshSpace::RAS);
+  const std::string path = dir.file("three.json");
+  msk::test::writeBytes(path, R"({"objects": [
+      {"name": "near1", "label": 1, "kind": "bone", "template": "s1.vtk"},
+      {"name": "far", "label": 2, "kind": "muscle", "template": "s3.vtk"},
+      {"name": "near2", "label": 3, "kind": "muscle", "template": "s2.vtk"}],
+    "collisions": )" + collisions + "}");
+  return path;
+}
+
+}  // namespace
+
+TEST(Scene, AutoPairsAreTheTemplatesWithinTheDistance) {
+  ScratchDir dir;
+  // The shorthand (within 2 mm) selects exactly the two touching spheres, with the run's parameters.
+  const msk::Scene s = msk::loadScene(threeSpheres(dir, R"("auto")"));
+  ASSERT_EQ(s.collisions.size(), 1u);
+  const msk::CollisionPair& p = s.collisions[0];
+  EXPECT_EQ(std::make_pair(p.a, p.b), std::make_pair(0, 2));
+  EXPECT_TRUE(p.fromAuto);
+  EXPECT_LT(p.gapMm, 0);
+  EXPECT_LT(p.friction, 0);
+  // Below the 1 mm between the near spheres: no pair. Within 21 mm: far (20 mm from near1) joins near1 but not
+  // near2 (√(40² + 21²) − 20 ≈ 25.2 mm away); within 30 mm: every pair.
+  EXPECT_TRUE(msk::loadScene(threeSpheres(dir, R"([{"auto": true, "within_mm": 0.5}])")).collisions.empty());
+  const std::vector<std::pair<int, int>> wide = {{0, 1}, {0, 2}};
+  EXPECT_EQ(indexPairs(msk::loadScene(threeSpheres(dir, R"([{"auto": true, "within_mm": 21}])"))), wide);
+  const std::vector<std::pair<int, int>> all = {{0, 1}, {0, 2}, {1, 2}};
+  EXPECT_EQ(indexPairs(msk::loadScene(threeSpheres(dir, R"([{"auto": true, "within_mm": 30}])"))), all);
+}
+
+TEST(Scene, ExplicitPairsOverrideAutoParameters) {
+  ScratchDir dir;
+  const msk::Scene s = msk::loadScene(threeSpheres(dir, R"([
+      {"auto": true, "within_mm": 30, "gap_mm": 0.5, "friction": 0.3, "mode": "velocity", "target": "reaction"},
+      {"pair": ["near2", "near1"], "gap_mm": 0.1},
+      ["far", "near2"]])"));
+  // Declared pairs first in file order, then the auto pairs not declared.
+  const std::vector<std::pair<int, int>> want = {{0, 2}, {1, 2}, {0, 1}};
+  ASSERT_EQ(indexPairs(s), want);
+  const msk::CollisionPair &near = s.collisions[0], &declared = s.collisions[1], &found = s.collisions[2];
+  EXPECT_FALSE(near.fromAuto);
+  EXPECT_EQ(near.gapMm, 0.1);
+  EXPECT_LT(near.friction, 0);  // not the auto entry's 0.3
+  EXPECT_EQ(near.mode, msk::CollisionMode::Position);
+  EXPECT_EQ(near.target, msk::CollisionTarget::Spring);
+  EXPECT_FALSE(declared.fromAuto);
+  EXPECT_LT(declared.gapMm, 0);
+  EXPECT_TRUE(found.fromAuto);
+  EXPECT_EQ(found.gapMm, 0.5);
+  EXPECT_EQ(found.friction, 0.3);
+  EXPECT_LT(found.proximityMm, 0);
+  EXPECT_EQ(found.mode, msk::CollisionMode::Velocity);
+  EXPECT_EQ(found.target, msk::CollisionTarget::Reaction);
+}
+
+TEST(Scene, AutoPairsOnTheGeneratedPhantomAreItsDeclaredPairs) {
+  msk::PhantomOptions o;
+  o.seed = 3;
+  o.spacing = {2.0, 2.0, 2.0};
+  o.meshSpacingMm = 2.0;
+  o.meshVertices = 600;
+  o.noise = 0;
+  ScratchDir dir;
+  msk::writePhantom(msk::makePhantom(o), o, dir.path());
+  const msk::Scene declared = msk::loadScene(dir.file("scene.json"));
+  // The same scene with "collisions": "auto": the thigh's compartments all touch (or overlap) each other and the
+  // femur, so auto finds the same six pairs.
+  msk::Json j = msk::Json::readFile(dir.file("scene.json"));
+  j["collisions"] = msk::Json("auto");
+  j.writeFile(dir.file("auto.json"));
+  const msk::Scene found = msk::loadScene(dir.file("auto.json"));
+  std::vector<std::pair<int, int>> want = indexPairs(declared), got = indexPairs(found);
+  std::sort(want.begin(), want.end());
+  EXPECT_EQ(got, want);
+  for (const auto& p : found.collisions) EXPECT_TRUE(p.fromAuto);
 }

@@ -1,9 +1,12 @@
 #pragma once
-/// Scenes: the objects to segment (name, label, kind, template) and their collision pairs, read from scene.json.
+/// Scenes: the objects to segment (name, label, kind, template, the constraints each gets) and their collision
+/// pairs (declared, or "auto" from template proximity), read from scene.json.
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "msk/core/constraints.h"
 #include "msk/core/json.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/segmentation/image_forces.h"
@@ -16,6 +19,28 @@ enum class ObjectKind { Bone, Muscle, Generic };
 /// "bone" | "muscle" | "generic".
 const char* objectKindName(ObjectKind k);
 
+/// The constraints an object gets (scene key "model" of an object). Fields marked "< 0" or "unset" take the run's
+/// value (SegmentOptions or the module's default), so a scene only states what it changes.
+struct ObjectModel {
+  /// "shape_memory": "template" → InternalMode::ShapeMemory, "smoothing" → InternalMode::Smoothing, false → unset
+  /// (no internal constraint).
+  std::optional<InternalMode> shapeMemory = InternalMode::ShapeMemory;
+  double internalStiffness = -1;  ///< "internal_stiffness": γ of the internal constraint, [0, 1]; < 0 = run default
+  bool globalPrior = true;        ///< false ("global_prior": false): no global shape prior
+  std::optional<PriorTransform> priorTransform;  ///< "global_prior": "rigid"|"similarity"|"affine"; unset = run's
+  TargetMode imageForce = TargetMode::Gradient;  ///< "image_force" (or the object-level synonym "force")
+  bool medialAxis = false;        ///< "medial_axis": a 1-simplex medial axis with two-way radial constraints
+  double radialStiffness = -1;    ///< "radial_stiffness": γ of the radial constraints, [0, 1]; < 0 = run default
+  double axisSpacingMm = -1;      ///< "axis_spacing_mm": distance between axis vertices, mm, > 0; < 0 = run default
+  bool volumetric = false;        ///< "volumetric": a coupled 3-simplex volume model
+  double volumeStiffness = -1;    ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
+};
+
+/// The model an object of kind `k` gets when its scene entry says nothing (the one place defaults by kind live).
+/// Today every kind gets what the segmenter has always done: template shape memory, the run's global prior, gradient
+/// image force, no medial axis, no volume model.
+ObjectModel defaultModel(ObjectKind k);
+
 /// One object of a scene.
 struct SceneObject {
   std::string name;                       ///< unique, non-empty
@@ -24,24 +49,53 @@ struct SceneObject {
   std::string templatePath;               ///< resolved path of the template mesh
   TriangleMesh templ;                     ///< the template, RAS mm (closed, loaded and checked)
   /// Optional per-object overrides (scene keys "polarity": "auto|dark-inside|bright-inside",
-  /// "force": "gradient|profile"); unset keys keep the kind's defaults.
+  /// "force": "gradient|profile", or its synonym "image_force" in "model"); unset keys keep the kind's defaults.
   bool hasPolarity = false;
   Polarity polarity = Polarity::Auto;  ///< valid if hasPolarity
   bool hasForce = false;
-  TargetMode force = TargetMode::Gradient;  ///< valid if hasForce
+  TargetMode force = TargetMode::Gradient;  ///< valid if hasForce (also in model.imageForce)
+  ObjectModel model;                        ///< defaultModel(kind) with the object's "model" keys applied
+};
+
+/// How a collision correction is applied (Table 4.23 of the thesis seed).
+enum class CollisionMode { Position, Velocity, Acceleration };
+/// "position" | "velocity" | "acceleration".
+const char* collisionModeName(CollisionMode m);
+
+/// Where a colliding vertex is sent (Table 4.23 of the thesis seed).
+enum class CollisionTarget { Spring, Reaction, Reference };
+/// "spring" | "reaction" | "reference".
+const char* collisionTargetName(CollisionTarget t);
+
+/// One collision pair of a scene. Parameters < 0 take the run's value (SegmentOptions).
+struct CollisionPair {
+  int a = 0, b = 0;          ///< object indices, a < b
+  double gapMm = -1;         ///< "gap_mm": clearance g kept between the partners, mm, ≥ 0
+  double proximityMm = -1;   ///< "proximity_mm": contact search reach d_max beyond the gap, mm, > 0
+  double friction = -1;      ///< "friction": μ ∈ [0, 1]
+  CollisionMode mode = CollisionMode::Position;      ///< "mode"
+  CollisionTarget target = CollisionTarget::Spring;  ///< "target"
+  bool fromAuto = false;     ///< found by an "auto" entry (templates within its distance), not declared by name
 };
 
 /// A scene: objects and declared collision pairs (indices into objects).
 struct Scene {
   std::string path;                               ///< the scene file
   std::vector<SceneObject> objects;               ///< in file order
-  std::vector<std::pair<int, int>> collisions;    ///< pairs of object indices, i < j, no duplicates
+  std::vector<CollisionPair> collisions;          ///< declared pairs in file order, then auto pairs; no duplicates
   Json metadata;                                  ///< the optional "phantom"/"description" entries, kept as given
 };
 
-/// Reads and validates a scene. Template paths are relative to the scene file. Unknown keys, wrong types, missing
-/// keys, duplicate names or labels, unknown collision names, unreadable or non-closed templates → IoError naming the
-/// scene file, the key and the object (e.g. "objects[1] (quadriceps): unknown key \"lable\"").
+/// Reads and validates a scene. Template paths are relative to the scene file. Unknown keys, wrong types, values out
+/// of range, missing keys, duplicate names or labels, unknown collision names, a pair declared twice, unreadable or
+/// non-closed templates → IoError naming the scene file, the key and the object (e.g. "objects[1] (quadriceps):
+/// unknown key \"lable\"").
+///
+/// "collisions" is an array whose entries are ["a", "b"], {"pair": ["a", "b"], <parameters>} or one
+/// {"auto": true, "within_mm": D, <parameters>} (D ≥ 0, default 2) that adds every pair of objects whose templates
+/// come within D mm of each other or overlap (surfaceSeparationMm), except pairs declared by name, which keep their
+/// own parameters. <parameters> are the optional "gap_mm", "proximity_mm", "friction", "mode", "target".
+/// "collisions": "auto" is short for [{"auto": true, "within_mm": 2}].
 Scene loadScene(const std::string& path);
 
 /// Parses a scene from JSON text already read (`path` used for messages and relative template paths).
