@@ -1,0 +1,46 @@
+#pragma once
+/// Inside/outside of a closed surface that stays meaningful where the surface folds or touches itself: the generalised
+/// winding number (Jacobson, Kavan and Sorkine-Hornung 2013), with distant groups of triangles replaced by their
+/// dipole, as in the fast winding numbers of Barill et al. 2018 (order 1 on a flat grid of clusters).
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/triangle_mesh.h"
+
+namespace msk {
+
+/// Solid angle of triangle (a, b, c) seen from q, divided by 4π (Van Oosterom and Strackee 1983); in (−½, ½).
+double triangleWindingNumber(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                             const Eigen::Vector3d& c);
+
+/// Winding number of a closed, outward-oriented triangle surface: ≈ 1 inside, ≈ 0 outside (2 where it covers a point
+/// twice). Triangles are grouped in cubic clusters; a cluster seen from farther than `farFactor` times its radius
+/// contributes its dipole Σ aᵢnᵢ·(c − q)/(4π|c − q|³), nearer ones triangle by triangle (exact).
+class WindingNumber {
+ public:
+  /// `clusterMm` ≤ 0: four times the mean edge length. farFactor ≥ 1 (2 keeps the error far below the ½ threshold
+  /// for smooth organ surfaces).
+  WindingNumber(const Points& vertices, const Triangles& faces, double clusterMm = 0, double farFactor = 2.0);
+  /// The winding number at q (mm).
+  double at(const Eigen::Vector3d& q) const;
+  /// at(q) > ½.
+  bool inside(const Eigen::Vector3d& q) const { return at(q) > 0.5; }
+  /// Exact sum over every triangle (reference for tests; O(#F)).
+  double exactAt(const Eigen::Vector3d& q) const;
+
+ private:
+  struct Cluster {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< area-weighted centroid of its triangles
+    Eigen::Vector3d dipole = Eigen::Vector3d::Zero();  ///< Σ area · unit normal
+    double radius = 0;                                 ///< largest distance from the centre to a corner
+    int begin = 0, end = 0;                            ///< its triangles: order_[begin, end)
+  };
+  Points v_;
+  Triangles f_;
+  double far_;
+  std::vector<Cluster> clusters_;
+  std::vector<int> order_;
+};
+
+}  // namespace msk
