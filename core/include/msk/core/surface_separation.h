@@ -1,0 +1,42 @@
+#pragma once
+/// Final separation of touching closed surfaces (the output meshes of a scene): every vertex or face centroid of one
+/// surface found inside or within the gap of a declared partner is moved out with the collision position correction of Table 4.23
+/// (spring target, DESIGN-NOTES §3), shared with the partner triangle's corners so linear momentum is conserved. The
+/// side is decided by the partner's winding number, which stays right where a surface folds.
+#include <vector>
+
+#include "msk/core/triangle_mesh.h"
+
+namespace msk {
+
+/// Settings of separateSurfaces() (user input).
+struct SeparationOptions {
+  double reachMm = 3.0;  ///< how far from a partner's surface vertices are examined (> gap), mm
+  int maxSweeps = 32;    ///< sweeps over every pair and direction
+  double toleranceMm = 0.01;  ///< stop after a sweep that found nothing inside and corrected nothing by more, mm
+};
+
+/// One declared pair of surfaces (indices into the surfaces given) and the clearance kept between them.
+struct SeparationPair {
+  int a = 0, b = 0;    ///< surface indices, a ≠ b
+  double gapMm = 0.2;  ///< wanted clearance g ≥ 0, mm
+};
+
+/// What separateSurfaces() did.
+struct SeparationReport {
+  int sweeps = 0;       ///< sweeps run
+  long corrections = 0; ///< vertex corrections applied over all sweeps
+  bool clean = false;   ///< the last sweep found nothing inside and corrected nothing by more than the tolerance
+};
+
+/// Moves the surfaces' vertices (in place) until no sample (vertex or face centroid) of either surface of a pair lies
+/// inside the other and the corrections have settled below the tolerance, or maxSweeps is reached. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
+/// surface (a bone) moves less. Throws ParameterError for bad options or pair indices, Error on size mismatches.
+SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
+                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts = {});
+
+/// Deepest vertex of `a` inside closed surface `b`, mm (0 if none): winding-number side, depth = distance to b's
+/// surface. A vertex inside but farther than `reachMm` from b's surface counts as `reachMm` (a lower bound).
+double penetrationDepth(const TriangleMesh& a, const TriangleMesh& b, double reachMm = 10.0);
+
+}  // namespace msk

@@ -1,0 +1,196 @@
+#include "msk/core/surface_separation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <string>
+
+#include "msk/core/collision_surface.h"
+#include "msk/core/constraints.h"
+#include "msk/core/error.h"
+#include "msk/core/winding_number.h"
+
+namespace msk {
+
+namespace {
+
+/// Whether q lies in the box of `s` grown by `margin`.
+bool nearBox(const Eigen::Vector3d& q, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, double margin) {
+  return (q.array() >= lo.array() - margin).all() && (q.array() <= hi.array() + margin).all();
+}
+
+/// Sample points of a surface where contacts are tested: its vertices, then its face centroids (so that a face of A
+/// cutting through B between A's vertices is caught too).
+int sampleCount(const TriangleMesh& m) { return m.vertexCount() + m.faceCount(); }
+
+/// Corners and weights of sample k of `m` (1 or 3 corners; returns their number).
+int sampleCorners(const TriangleMesh& m, int k, int idx[3], double wts[3]) {
+  if (k < m.vertexCount()) {
+    idx[0] = k;
+    wts[0] = 1.0;
+    return 1;
+  }
+  for (int c = 0; c < 3; ++c) {
+    idx[c] = m.faces(k - m.vertexCount(), c);
+    wts[c] = 1.0 / 3.0;
+  }
+  return 3;
+}
+
+/// A sample of A near B and the side of B it was last found on.
+struct ActiveSample {
+  int sample = 0;
+  Eigen::Vector3d outward = Eigen::Vector3d::Zero();  ///< B's outward direction at the sample's last contact
+};
+
+/// One direction of one pair, A's samples against B's surface: each sample inside B or closer than the gap is moved
+/// to the gap outside (Table 4.23 position correction, spring target, no friction) with the correction of Pc = P̄B − P̄A
+/// shared by the corners of both sides through the reduced mass m̄ = (Σ ak² wA + Σ bj² wB)⁻¹, so linear momentum is
+/// conserved. With `refresh`, every sample is examined and its side taken from B's winding number; `active` is then
+/// refilled with the samples found within reach. Otherwise only `active` is examined, and a sample's side follows from
+/// the side it was on before (it has crossed B if it is now behind B's surface as seen along its last outward
+/// direction): the corrections between refreshes are far smaller than the reach.
+struct PassResult {
+  long applied = 0;
+  double largestMm = 0;  ///< largest correction |ΔPc|
+  bool anyInside = false;
+};
+PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, double gap, double reach, bool refresh,
+                        std::vector<ActiveSample>& active) {
+  PassResult out;
+  CollisionSurface surface(B.faces, reach);
+  surface.update(B.vertices);
+  std::optional<WindingNumber> winding;
+  if (refresh) {
+    winding.emplace(B.vertices, B.faces);
+    active.clear();
+  }
+  const int n = refresh ? sampleCount(A) : static_cast<int>(active.size());
+  for (int i = 0; i < n; ++i) {
+    const int k = refresh ? i : active[static_cast<size_t>(i)].sample;
+    int ia[3];
+    double wa[3];
+    const int na = sampleCorners(A, k, ia, wa);
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    for (int c = 0; c < na; ++c) q += wa[c] * A.vertices.row(ia[c]).transpose();
+    // The grid is from the start of this pass (B moves a little with each correction): it only guides the search,
+    // the closest point is computed at B's current positions.
+    const SurfacePoint s = surface.closest(B.vertices, q, reach);
+    if (s.triangle < 0) continue;
+    Eigen::Vector3d normal;  // B's outward side at the contact
+    bool inside = false;
+    if (s.distance > 1e-12) {
+      inside = refresh ? winding->inside(q) : (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0;
+      normal = (inside ? -1.0 : 1.0) * (q - s.point) / s.distance;
+    } else {
+      normal = surface.pseudonormal(B.vertices, s);
+      if (!(normal.norm() > 1e-12)) continue;
+      normal.normalize();
+    }
+    if (refresh) active.push_back({k, normal});
+    else active[static_cast<size_t>(i)].outward = normal;
+    if (!inside && s.distance >= gap) continue;
+    out.anyInside = out.anyInside || inside;
+    const double pcn = (s.point - q).dot(normal);
+    if (!(pcn + gap > 0)) continue;
+    const Eigen::Vector3d delta = -(pcn + gap) * normal;  // wanted change of Pc
+    double denom = 0;
+    for (int c = 0; c < na; ++c) denom += wa[c] * wa[c] * wA;
+    for (int c = 0; c < 3; ++c) denom += s.bary[c] * s.bary[c] * wB;
+    if (!(denom > 0)) continue;
+    const double mbar = 1.0 / denom;
+    for (int c = 0; c < na; ++c) A.vertices.row(ia[c]) -= (wA * wa[c] * mbar) * delta.transpose();
+    for (int c = 0; c < 3; ++c) B.vertices.row(B.faces(s.triangle, c)) += (wB * s.bary[c] * mbar) * delta.transpose();
+    ++out.applied;
+    out.largestMm = std::max(out.largestMm, delta.norm());
+  }
+  return out;
+}
+
+}  // namespace
+
+SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
+                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts) {
+  if (surfaces.size() != inverseMass.size()) throw Error("separation: one inverse mass per surface is needed");
+  if (opts.maxSweeps < 0 || opts.maxSweeps > 10000)
+    throw ParameterError("separation sweeps", std::to_string(opts.maxSweeps), "must be 0..10000");
+  if (!(opts.toleranceMm > 0) || !std::isfinite(opts.toleranceMm))
+    throw ParameterError("separation tolerance", std::to_string(opts.toleranceMm), "must be > 0 mm");
+  for (double w : inverseMass)
+    if (!(w >= 0) || !std::isfinite(w)) throw Error("separation: inverse masses must be finite and non-negative");
+  for (const SeparationPair& p : pairs) {
+    const int n = static_cast<int>(surfaces.size());
+    if (p.a < 0 || p.b < 0 || p.a >= n || p.b >= n || p.a == p.b)
+      throw ParameterError("separation pair", std::to_string(p.a) + "," + std::to_string(p.b), "must name two surfaces");
+    if (!(p.gapMm >= 0) || !std::isfinite(p.gapMm))
+      throw ParameterError("collision gap", std::to_string(p.gapMm), "must be >= 0 mm");
+    if (!(opts.reachMm > p.gapMm) || !std::isfinite(opts.reachMm))
+      throw ParameterError("separation reach", std::to_string(opts.reachMm), "must exceed the gap");
+  }
+  SeparationReport rep;
+  // Samples found near the partner at the last refresh, per pair and direction. A refresh (every sample examined, the
+  // side from the winding number) comes every kRefresh sweeps and before the run may stop, so a sample pushed into a
+  // partner by another pair's corrections is caught.
+  constexpr int kRefresh = 4;
+  std::vector<std::vector<ActiveSample>> active(2 * pairs.size());
+  std::vector<bool> far(pairs.size(), false);
+  int sinceRefresh = 0;
+  bool settled = false;
+  for (int sweep = 0; sweep < opts.maxSweeps; ++sweep) {
+    const bool refresh = sweep == 0 || sinceRefresh >= kRefresh || settled;
+    sinceRefresh = refresh ? 1 : sinceRefresh + 1;
+    long applied = 0;
+    double largest = 0;
+    bool anyInside = false;
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      const SeparationPair& p = pairs[k];
+      TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
+      TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
+      const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
+      if (sweep == 0) {  // pairs whose boxes are farther apart than the reach are never tested
+        const Eigen::Vector3d loA = A.vertices.colwise().minCoeff(), hiA = A.vertices.colwise().maxCoeff();
+        const Eigen::Vector3d loB = B.vertices.colwise().minCoeff(), hiB = B.vertices.colwise().maxCoeff();
+        far[k] = ((loA.array() - opts.reachMm) > hiB.array()).any() || ((loB.array() - opts.reachMm) > hiA.array()).any();
+      }
+      if (far[k]) continue;
+      for (int d = 0; d < 2; ++d) {
+        std::vector<ActiveSample>& act = active[2 * k + static_cast<size_t>(d)];
+        const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, opts.reachMm, refresh, act)
+                                    : separateOnce(B, A, wB, wA, p.gapMm, opts.reachMm, refresh, act);
+        applied += r.applied;
+        largest = std::max(largest, r.largestMm);
+        anyInside = anyInside || r.anyInside;
+      }
+    }
+    ++rep.sweeps;
+    rep.corrections += applied;
+    // Done when a refresh sweep finds nothing inside a partner and only negligible corrections (within-gap
+    // adjustments between three or more touching surfaces can go on trading hundredths of a millimetre).
+    settled = !anyInside && largest < opts.toleranceMm;
+    if (settled && refresh) {
+      rep.clean = true;
+      break;
+    }
+  }
+  for (TriangleMesh* s : surfaces)
+    if (!s->vertices.allFinite()) throw Error("separation: non-finite vertex position");
+  return rep;
+}
+
+double penetrationDepth(const TriangleMesh& a, const TriangleMesh& b, double reachMm) {
+  if (a.vertexCount() == 0 || b.faceCount() == 0) return 0;
+  const Eigen::Vector3d lo = b.vertices.colwise().minCoeff(), hi = b.vertices.colwise().maxCoeff();
+  const WindingNumber winding(b.vertices, b.faces);
+  CollisionSurface surface(b.faces, reachMm);
+  surface.update(b.vertices);
+  double worst = 0;
+  for (int v = 0; v < a.vertexCount(); ++v) {
+    const Eigen::Vector3d q = a.vertices.row(v).transpose();
+    if (!nearBox(q, lo, hi, 0.0) || !winding.inside(q)) continue;
+    const SurfacePoint s = surface.closest(b.vertices, q, reachMm);
+    worst = std::max(worst, s.triangle < 0 ? reachMm : s.distance);
+  }
+  return worst;
+}
+
+}  // namespace msk

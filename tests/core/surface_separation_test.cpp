@@ -1,0 +1,69 @@
+#include "msk/core/surface_separation.h"
+
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+#include "msk/core/winding_number.h"
+
+namespace {
+Eigen::Vector3d momentum(const msk::TriangleMesh& m, double inverseMass) {
+  return m.vertices.colwise().sum().transpose() / inverseMass;
+}
+int verticesInside(const msk::TriangleMesh& a, const msk::TriangleMesh& b) {
+  const msk::WindingNumber wn(b.vertices, b.faces);
+  int n = 0;
+  for (int v = 0; v < a.vertexCount(); ++v) n += wn.exactAt(a.vertices.row(v).transpose()) > 0.5;
+  return n;
+}
+}  // namespace
+
+// Two spheres overlapping by 1.5 mm end apart by the gap, the heavier one moving less, with linear momentum kept.
+// (Without internal constraints the surfaces dent rather than move whole, so deeper overlaps need more sweeps.)
+TEST(SurfaceSeparation, PushesOverlappingSpheresApartConservingMomentum) {
+  msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {18.5, 0, 0});
+  const double wa = 0.2, wb = 1.0;  // a is five times heavier
+  ASSERT_GT(verticesInside(a, b), 10);
+  const Eigen::Vector3d before = momentum(a, wa) + momentum(b, wb);
+  const Eigen::Vector3d ca = a.vertices.colwise().mean(), cb = b.vertices.colwise().mean();
+  std::vector<msk::TriangleMesh*> s = {&a, &b};
+  msk::SeparationOptions opts;
+  opts.maxSweeps = 100;
+  const msk::SeparationReport rep = msk::separateSurfaces(s, {wa, wb}, {{0, 1, 0.2}}, opts);
+  EXPECT_TRUE(rep.clean) << rep.sweeps << " sweeps";
+  EXPECT_LT(rep.sweeps, 100);
+  EXPECT_GT(rep.corrections, 0);
+  EXPECT_EQ(verticesInside(a, b), 0);
+  EXPECT_EQ(verticesInside(b, a), 0);
+  EXPECT_DOUBLE_EQ(msk::penetrationDepth(a, b), 0.0);
+  EXPECT_DOUBLE_EQ(msk::penetrationDepth(b, a), 0.0);
+  const Eigen::Vector3d after = momentum(a, wa) + momentum(b, wb);
+  EXPECT_LT((after - before).norm(), 1e-9 * before.norm());
+  // The light sphere gave way more than the heavy one.
+  const double moveA = (a.vertices.colwise().mean().transpose() - ca).norm();
+  const double moveB = (b.vertices.colwise().mean().transpose() - cb).norm();
+  EXPECT_GT(moveB, 2 * moveA);
+}
+
+TEST(SurfaceSeparation, MeasuresPenetrationAndLeavesSeparateSurfacesAlone) {
+  msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {19, 0, 0});
+  const double depth = msk::penetrationDepth(b, a);
+  EXPECT_GT(depth, 0.5);  // b's leftmost vertex is about 1 mm inside a
+  EXPECT_LT(depth, 1.1);
+  msk::TriangleMesh c = msk::makeIcosphere(10, 3, {30, 0, 0});
+  const msk::TriangleMesh c0 = c;
+  std::vector<msk::TriangleMesh*> s = {&a, &c};
+  const msk::SeparationReport rep = msk::separateSurfaces(s, {1.0, 1.0}, {{0, 1, 0.2}});
+  EXPECT_TRUE(rep.clean);
+  EXPECT_EQ(rep.corrections, 0);
+  EXPECT_EQ((c.vertices - c0.vertices).norm(), 0.0);
+}
+
+TEST(SurfaceSeparation, RejectsBadInput) {
+  msk::TriangleMesh a = msk::makeIcosphere(10, 2), b = msk::makeIcosphere(10, 2, {15, 0, 0});
+  std::vector<msk::TriangleMesh*> s = {&a, &b};
+  EXPECT_THROW(msk::separateSurfaces(s, {1.0}, {{0, 1, 0.2}}), msk::Error);
+  EXPECT_THROW(msk::separateSurfaces(s, {1.0, 1.0}, {{0, 0, 0.2}}), msk::ParameterError);
+  EXPECT_THROW(msk::separateSurfaces(s, {1.0, 1.0}, {{0, 2, 0.2}}), msk::ParameterError);
+  EXPECT_THROW(msk::separateSurfaces(s, {1.0, 1.0}, {{0, 1, -1}}), msk::ParameterError);
+  EXPECT_THROW(msk::separateSurfaces(s, {1.0, -1.0}, {{0, 1, 0.2}}), msk::Error);
+}
