@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <optional>
 
 #include <Eigen/Dense>
 
 #include "msk/core/error.h"
+#include "msk/core/winding_number.h"
 
 namespace msk {
 
@@ -435,6 +437,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
   if (surface_->triangles().rows() == 0 || count_ == 0) return;
   if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
+  std::optional<WindingNumber> winding;  // of B at p, built at the first contact that needs a side
   for (int v = 0; v < count_; ++v) {
     const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
     const SurfacePoint s = surface_->closest(p, q, reach);
@@ -442,11 +445,12 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
     Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero()};
     // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
     // taken to be outside (true when each step starts collision-free), so a correction can never push it through B.
-    // With it, the side comes from B's pseudonormal, and only where B's smooth normal agrees: where they disagree
-    // B is folded or stretched there and the vertex is taken to be outside rather than pushed the wrong way.
+    // With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
+    // pseudonormal there can point the wrong way and push the vertex through).
     const Eigen::Vector3d off = q - s.point;
     if (s.distance > 1e-9 * (1.0 + q.norm())) {
-      const bool inside = insideTest && off.dot(surface_->pseudonormal(p, s)) < 0 && off.dot(surface_->smoothNormal(p, s)) < 0;
+      if (insideTest && !winding) winding.emplace(p, surface_->triangles());
+      const bool inside = insideTest && winding->inside(q);
       found.normal = (inside ? -1.0 : 1.0) * off / s.distance;
     } else {  // on the surface: B's outward side
       const Eigen::Vector3d pseudo = surface_->pseudonormal(p, s);

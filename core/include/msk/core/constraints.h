@@ -202,9 +202,9 @@ class CollisionConstraints : public ConstraintSet {
                        double friction);
   std::string name() const override { return "collision"; }
   /// Finds, for every vertex of A, the closest point of B within gap + proximity at positions `p`. With `insideTest`
-  /// the side comes from B's pseudonormal (confirmed by its smooth normal); without it every vertex is taken to be
-  /// outside B, which is exact when the positions are collision-free and keeps folded or stretched partner surfaces
-  /// from pushing a vertex through (use the test where overlaps may already exist: first step of a level, reports).
+  /// the side comes from B's winding number (right even where B folds); without it every vertex is taken to be
+  /// outside B, which is exact when the positions are collision-free and costs nothing (use the test where overlaps
+  /// may already exist: first step of a level, clean-up sweeps, reports).
   void detect(const Points& p, bool insideTest = true);
   void project(Points& p, const Eigen::VectorXd& w) override;
   /// Contacts found by the last detect().
