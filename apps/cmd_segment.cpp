@@ -1,4 +1,5 @@
 // mskseg segment: the scene's templates evolved into the image; meshes, label map, report and QC pictures.
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 
@@ -24,7 +25,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
              "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space",
-             "collision-gap", "collision-proximity", "friction"},
+             "collision-gap", "collision-proximity", "friction", "separation-sweeps"},
             {"help", "no-qc", "no-collisions"});
   if (args.has("help")) {
     std::cout
@@ -46,6 +47,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
            "  --collision-gap MM, --collision-proximity MM, --friction MU   contact gap, search reach beyond the\n"
            "                    gap and friction (defaults 0.2 mm, max(1 mm, half the largest spacing), 0)\n"
+           "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
            "advanced (relative to the voxel size, so they hold at any resolution):\n"
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
@@ -78,6 +80,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
   opts.collisionFriction = args.num("friction", opts.collisionFriction);
+  const double sweeps = args.num("separation-sweeps", opts.separationSweeps);
+  if (!(sweeps >= 0 && sweeps <= 1000) || sweeps != std::floor(sweeps))
+    throw ParameterError("--separation-sweeps", args.str("separation-sweeps"), "must be a whole number in 0..1000");
+  opts.separationSweeps = static_cast<int>(sweeps);
   if (!(opts.collisionGapMm >= 0 && opts.collisionGapMm <= 10))
     throw ParameterError("--collision-gap", args.str("collision-gap"), "must be in [0, 10] mm");
   if (!(opts.collisionProximityMm >= 0 && opts.collisionProximityMm <= 50))
@@ -125,12 +131,19 @@ int cmdSegment(const std::vector<std::string>& argv) {
     Json pairs = Json::array();
     for (size_t k = 0; k < scene.collisions.size(); ++k) {
       Json pj;
-      pj["objects"] = Json(Json::Array{scene.objects[static_cast<size_t>(scene.collisions[k].a)].name,
-                                       scene.objects[static_cast<size_t>(scene.collisions[k].b)].name});
+      const CollisionPair& cp = scene.collisions[k];
+      pj["objects"] = Json(Json::Array{scene.objects[static_cast<size_t>(cp.a)].name,
+                                       scene.objects[static_cast<size_t>(cp.b)].name});
+      pj["gap_mm"] = cp.gapMm >= 0 ? cp.gapMm : opts.collisionGapMm;
+      if (cp.proximityMm > 0) pj["proximity_mm"] = cp.proximityMm;
+      pj["friction"] = cp.friction >= 0 ? cp.friction : opts.collisionFriction;
+      pj["declared"] = cp.fromAuto ? "auto" : "by name";
       if (k < res.pairPenetrationMm.size()) pj["max_penetration_mm"] = res.pairPenetrationMm[k];
       pairs.push(pj);
     }
     report["collision_pairs"] = pairs;
+    report["separation_sweeps_run"] = res.separationSweeps;
+    report["separation_corrections"] = static_cast<double>(res.separationCorrections);
     Json objects = Json::array();
     std::vector<QcObject> qc;
     for (const auto& o : res.objects) {

@@ -8,7 +8,9 @@
 #include <tuple>
 
 #include "msk/core/error.h"
+#include "msk/core/medial_axis.h"
 #include "msk/core/simplex_mesh.h"
+#include "msk/core/surface_separation.h"
 #include "msk/imaging/rasterize.h"
 #include "msk/imaging/surface_extraction.h"
 
@@ -154,6 +156,10 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["collision_friction"] = o.collisionFriction;
   j["collision_mode"] = "position, spring target, sequential";
   j["collision_final_sweeps"] = o.collisionFinalSweeps;
+  j["separation_sweeps"] = o.separationSweeps;
+  j["radial_stiffness"] = o.radialStiffness;
+  j["axis_spacing_mm"] = o.axisSpacingMm;
+  j["axis_centering"] = o.axisCentering;
   j["bone_mass_ratio"] = o.boneMassRatio;
   j["pbd_dt"] = o.pbd.dt;
   j["pbd_iterations"] = o.pbd.iterations;
@@ -180,6 +186,26 @@ struct ObjectState {
   std::unique_ptr<TargetConstraints> targets;
   std::unique_ptr<ShapeMatchingConstraint> prior;
   LearnedProfiles profiles;
+  // Medial axis (objects whose model asks for one): its particles follow every object's surface in the stacked system.
+  MedialAxis axis;                 ///< at the current level, template position
+  RadialAttachment attachment;     ///< surface vertices of this level → axis segments, reference radii
+  Points axisStart;                ///< axis particles at the start of the level (template axis moved with the surface)
+  int axisFirst = 0;               ///< first axis particle in the stacked system
+  std::unique_ptr<RadialConstraints> radial;
+  std::unique_ptr<AxisCentering> centering;
+  /// The constraint sets of this object at the current level, in projection order (image, internal, prior, radial).
+  std::vector<ConstraintSet*> sets() const {
+    std::vector<ConstraintSet*> out;
+    for (ConstraintSet* c : {static_cast<ConstraintSet*>(targets.get()), static_cast<ConstraintSet*>(internal.get()),
+                             static_cast<ConstraintSet*>(prior.get()), static_cast<ConstraintSet*>(radial.get()),
+                             static_cast<ConstraintSet*>(centering.get())})
+      if (c) out.push_back(c);
+    return out;
+  }
+  /// Whether the object's model has a medial axis.
+  bool hasAxis() const { return obj && obj->model.medialAxis; }
+  /// Number of axis particles at the current level (0 without an axis).
+  int axisCount() const { return hasAxis() ? axis.curve.vertexCount() : 0; }
 };
 
 /// Builds the resolution levels, polarity and search settings of one object.
@@ -197,7 +223,7 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
                                                                        : st.lv[l - 1].triangles;
   }
   for (auto& l : st.lv) l.simplex = simplexFromTriangles(l.triangles);
-  st.search.mode = obj.hasForce ? obj.force : TargetMode::Gradient;
+  st.search.mode = obj.hasForce ? obj.force : obj.model.imageForce;
   st.search.distancePenalty = opts.edgePenalty;
   // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
   st.polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
@@ -224,12 +250,44 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   }
   if (st.search.mode == TargetMode::Profile)
     st.profiles = learnProfiles(feat, ref.simplex.positions, simplexVertexNormals(ref.simplex), st.search, grid);
-  st.internal = std::make_unique<SimplexInternalConstraints>(ref.simplex, opts.internalStiffness, opts.internalMode);
+  // Only what the object's model asks for is built.
+  const ObjectModel& model = st.obj->model;
+  st.internal.reset();
+  if (model.shapeMemory)
+    st.internal = std::make_unique<SimplexInternalConstraints>(
+        ref.simplex, model.internalStiffness >= 0 ? model.internalStiffness : opts.internalStiffness,
+        opts.internalMode == InternalMode::Smoothing ? InternalMode::Smoothing : *model.shapeMemory);
   st.targets = std::make_unique<TargetConstraints>(opts.imageStiffness);
-  st.prior = std::make_unique<ShapeMatchingConstraint>(ref.simplex.positions, opts.priorTransform, opts.priorStart);
-  for (ConstraintSet* c : {static_cast<ConstraintSet*>(st.internal.get()), static_cast<ConstraintSet*>(st.targets.get()),
-                           static_cast<ConstraintSet*>(st.prior.get())})
-    c->setFirstParticle(st.first);
+  st.prior.reset();
+  if (model.globalPrior)
+    st.prior = std::make_unique<ShapeMatchingConstraint>(ref.simplex.positions,
+                                                         model.priorTransform.value_or(opts.priorTransform), opts.priorStart);
+  st.radial.reset();
+  st.centering.reset();
+  if (model.medialAxis) {
+    // The axis of this level's template, its surface vertices attached with their template radii; the axis starts
+    // where the best similarity fit of the template onto the current surface puts it.
+    MedialAxisOptions mo;
+    mo.spacingMm = model.axisSpacingMm > 0 ? model.axisSpacingMm : opts.axisSpacingMm;
+    st.axis = buildMedialAxis(ref.triangles, mo);
+    st.attachment = attachToAxis(ref.simplex.positions, st.axis.curve.positions);
+    const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
+                                             Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Similarity);
+    st.axisStart = ((st.axis.curve.positions * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
+                    fit.topRightCorner<3, 1>().transpose());
+  }
+  for (ConstraintSet* c : st.sets()) c->setFirstParticle(st.first);
+}
+
+/// Builds the radial constraints and the axis re-centring of an object with a medial axis, once its axis particles
+/// have their place in the stacked system (st.axisFirst).
+void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
+  const ObjectModel& model = st.obj->model;
+  const double gamma = model.radialStiffness >= 0 ? model.radialStiffness : opts.radialStiffness;
+  st.radial = std::make_unique<RadialConstraints>(st.attachment, st.axisFirst, gamma);
+  st.centering = std::make_unique<AxisCentering>(st.attachment, st.axisFirst, st.axis.curve.vertexCount(), opts.axisCentering);
+  st.radial->setFirstParticle(st.first);
+  st.centering->setFirstParticle(st.first);
 }
 
 /// Final surface on the template's own triangulation, with per-vertex displacement and image residual.
@@ -258,6 +316,10 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   checkUnitInterval("global prior start", opts.priorStart);
   checkUnitInterval("global prior end", opts.priorEnd);
   checkUnitInterval("collision friction", opts.collisionFriction);
+  checkUnitInterval("radial stiffness", opts.radialStiffness);
+  checkUnitInterval("axis centring", opts.axisCentering);
+  if (!(opts.axisSpacingMm >= 0.5 && opts.axisSpacingMm <= 100))
+    throw ParameterError("axis spacing", std::to_string(opts.axisSpacingMm), "must be in [0.5, 100] mm");
   if (!(opts.collisionGapMm >= 0 && opts.collisionGapMm <= 10))
     throw ParameterError("collision gap", std::to_string(opts.collisionGapMm), "must be in [0, 10] mm");
   if (!(opts.collisionProximityMm >= 0 && opts.collisionProximityMm <= 50))
@@ -266,6 +328,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     throw ParameterError("bone mass ratio", std::to_string(opts.boneMassRatio), "must be in [0.001, 1000]");
   if (opts.collisionFinalSweeps < 0 || opts.collisionFinalSweeps > 1000)
     throw ParameterError("collision sweeps", std::to_string(opts.collisionFinalSweeps), "must be 0..1000");
+  if (opts.separationSweeps < 0 || opts.separationSweeps > 1000)
+    throw ParameterError("separation sweeps", std::to_string(opts.separationSweeps), "must be 0..1000");
   if (opts.levels < 0 || opts.levels > 5) throw ParameterError("levels", std::to_string(opts.levels), "must be 0..5");
   if (opts.maxStepsPerLevel < 0 || opts.maxStepsPerLevel > 100000)
     throw ParameterError("max steps", std::to_string(opts.maxStepsPerLevel), "must be 0..100000");
@@ -282,6 +346,14 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (float v : image.data)
     if (!std::isfinite(v)) throw Error("image has NaN/Inf voxels");
   if (scene.objects.empty()) throw Error("scene has no objects");
+  // Contacts are position corrections with a spring target (Table 4.23); the other modes and targets are not
+  // implemented, and a scene that asks for one is refused rather than run differently from what it says.
+  for (const CollisionPair& p : scene.collisions)
+    if (p.mode != CollisionMode::Position || p.target != CollisionTarget::Spring)
+      throw Error(scene.path + ": collision pair " + scene.objects[static_cast<size_t>(p.a)].name + "-" +
+                  scene.objects[static_cast<size_t>(p.b)].name + ": mode \"" + collisionModeName(p.mode) +
+                  "\" with target \"" + collisionTargetName(p.target) +
+                  "\" is not supported yet (only \"position\" with \"spring\")");
 
   SegmentationResult res;
   res.settings = resolveSettings(opts, image.grid);
@@ -299,6 +371,10 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   const double proximity =
       opts.collisionProximityMm > 0 ? opts.collisionProximityMm : std::max(1.0, 0.5 * image.grid.spacing.maxCoeff());
   double collisionDetectSeconds = 0;
+  // Contact parameters of a pair: the scene's values where it sets them, else the run's.
+  auto pairGap = [&](const CollisionPair& p) { return p.gapMm >= 0 ? p.gapMm : opts.collisionGapMm; };
+  auto pairProximity = [&](const CollisionPair& p) { return p.proximityMm > 0 ? p.proximityMm : proximity; };
+  auto pairFriction = [&](const CollisionPair& p) { return p.friction >= 0 ? p.friction : opts.collisionFriction; };
   const int totalSteps = rs.levels * rs.maxStepsPerLevel;
   int stepsDone = 0;
   for (int l = coarsest; l >= 0; --l) {
@@ -311,39 +387,56 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       enterLevel(st, l, coarsest, opts, feat, image.grid);
       n += st.current.vertexCount();
     }
+    // Medial-axis particles follow all the surfaces.
+    for (auto& st : objs)
+      if (st.hasAxis()) {
+        st.axisFirst = n;
+        n += st.axisCount();
+        buildAxisSets(st, opts);
+        if (l == coarsest) ++res.medialAxesBuilt;
+      }
     Points x(n, 3);
-    for (const auto& st : objs) x.middleRows(st.first, st.current.vertexCount()) = st.current.positions;
-    std::vector<ConstraintSet*> sets;
-    for (auto& st : objs) {
-      sets.push_back(st.targets.get());
-      sets.push_back(st.internal.get());
-      sets.push_back(st.prior.get());
+    for (const auto& st : objs) {
+      x.middleRows(st.first, st.current.vertexCount()) = st.current.positions;
+      if (st.hasAxis()) x.middleRows(st.axisFirst, st.axisCount()) = st.axisStart;
     }
+    std::vector<ConstraintSet*> sets;
+    for (auto& st : objs)
+      for (ConstraintSet* c : st.sets()) sets.push_back(c);
     // Bones are heavier, so a contact moves the muscle more than the bone (masses only matter for shared corrections:
-    // image targets and shape memory do not depend on a uniform mass scale).
+    // image targets and shape memory do not depend on a uniform mass scale). An axis carries the mass of its surface.
     Eigen::VectorXd invMass = Eigen::VectorXd::Ones(n);
-    for (const auto& st : objs)
+    for (const auto& st : objs) {
       if (st.obj->kind == ObjectKind::Bone) invMass.segment(st.first, st.current.vertexCount()).setConstant(1.0 / opts.boneMassRatio);
+      if (st.hasAxis())
+        invMass.segment(st.axisFirst, st.axisCount()) =
+            axisInverseMass(st.attachment, st.axisCount(), invMass.segment(st.first, st.current.vertexCount()));
+    }
     // Collision sets, only for declared pairs: each direction is A's vertices against B's surface (fan triangles of
     // B's simplex faces, whose corners are B's particles). Projected last in a step, so contacts have the last word.
     // Each partner surface is set up once per level and its grid rebuilt once per step, shared by the sets against it.
     std::vector<std::unique_ptr<CollisionConstraints>> collide;  // pair k: [2k] = first against second, [2k+1] back
     std::map<size_t, std::shared_ptr<CollisionSurface>> surfaces;
     if (opts.collisions && !scene.collisions.empty()) {
+      // Each surface must reach the largest gap + proximity of the pairs it is a partner in.
+      std::map<size_t, double> reach;
+      for (const CollisionPair& pair : scene.collisions)
+        for (int o : {pair.a, pair.b})
+          reach[static_cast<size_t>(o)] = std::max(reach[static_cast<size_t>(o)], pairGap(pair) + pairProximity(pair));
       auto surfaceOf = [&](size_t i) {
         auto it = surfaces.find(i);
         if (it == surfaces.end()) {
           Triangles t = simplexFanTriangles(objs[i].current);
           t.array() += objs[i].first;
-          it = surfaces.emplace(i, std::make_shared<CollisionSurface>(t, opts.collisionGapMm + proximity)).first;
+          it = surfaces.emplace(i, std::make_shared<CollisionSurface>(t, reach.at(i))).first;
         }
         return it->second;
       };
       for (const CollisionPair& pair : scene.collisions)
         for (auto [u, v] : {std::pair<size_t, size_t>(pair.a, pair.b), std::pair<size_t, size_t>(pair.b, pair.a)})
           collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(),
-                                                                   surfaceOf(v), opts.collisionGapMm, proximity,
-                                                                   opts.collisionFriction));
+                                                                   surfaceOf(v), pairGap(pair), pairProximity(pair),
+                                                                   pairFriction(pair)));
       res.collisionSetsBuilt += static_cast<int>(collide.size());
     }
     auto updateSurfaces = [&](const Points& p) {
@@ -358,7 +451,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
       const double runFraction = static_cast<double>(stepsDone) / std::max(1, totalSteps - 1);
       for (auto& st : objs) {
-        st.prior->setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
+        if (st.prior) st.prior->setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
         st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
         const auto ts = Clock::now();
         const Points normals = simplexVertexNormals(st.current);
@@ -403,17 +496,6 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
           collide[k]->project(p, solver.inverseMass());
         }
       solver.reset(p, solver.inverseMass());
-      // Penetration per declared pair (both directions), measured on the final positions.
-      updateSurfaces(p);
-      for (size_t k = 0; k < scene.collisions.size(); ++k) {
-        double worst = 0;
-        for (int d = 0; d < 2; ++d) {
-          CollisionConstraints& c = *collide[2 * k + static_cast<size_t>(d)];
-          c.detect(p);
-          worst = std::max(worst, c.maxPenetration(p));
-        }
-        res.pairPenetrationMm.push_back(worst);
-      }
       collisionDetectSeconds += since(tc);
     }
     for (auto& st : objs) {
@@ -437,6 +519,37 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.objects.push_back(std::move(st.out));
   }
   res.secondsPerStage["evolution"] = since(te) - features.seconds();
+  if (opts.collisions && !scene.collisions.empty()) {
+    // The output surfaces (the dual triangle meshes, not the simplex surfaces the contacts acted on) are separated
+    // last, so that what is written out and rasterised has no vertex inside a partner; then penetration is measured
+    // on them.
+    const auto ts = Clock::now();
+    std::vector<TriangleMesh*> surfaces;
+    std::vector<double> inverseMass;
+    for (size_t i = 0; i < res.objects.size(); ++i) {
+      surfaces.push_back(&res.objects[i].mesh);
+      inverseMass.push_back(scene.objects[i].kind == ObjectKind::Bone ? 1.0 / opts.boneMassRatio : 1.0);
+    }
+    std::vector<SeparationPair> pairs;
+    for (const CollisionPair& pair : scene.collisions)
+      pairs.push_back({pair.a, pair.b, pairGap(pair)});
+    SeparationOptions so;
+    so.maxSweeps = opts.separationSweeps;
+    so.reachMm = std::max(3.0, 2.0 * proximity);
+    for (const CollisionPair& p : scene.collisions) so.reachMm = std::max(so.reachMm, pairGap(p) + pairProximity(p));
+    const SeparationReport sep = separateSurfaces(surfaces, inverseMass, pairs, so);
+    res.separationSweeps = sep.sweeps;
+    res.separationCorrections = sep.corrections;
+    for (size_t i = 0; i < res.objects.size(); ++i) {
+      ObjectResult& o = res.objects[i];
+      o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - scene.objects[i].templ.vertices).rowwise().norm();
+      o.volumeMm3 = enclosedVolume(o.mesh);
+    }
+    for (const SeparationPair& p : pairs)
+      res.pairPenetrationMm.push_back(std::max(penetrationDepth(*surfaces[static_cast<size_t>(p.a)], *surfaces[static_cast<size_t>(p.b)]),
+                                               penetrationDepth(*surfaces[static_cast<size_t>(p.b)], *surfaces[static_cast<size_t>(p.a)])));
+    res.secondsPerStage["separation"] = since(ts);
+  }
   if (res.collisionSetsBuilt > 0) res.secondsPerStage["collision-detection"] = collisionDetectSeconds;
   res.secondsPerStage["features"] = features.seconds();
   res.featureScalesBuilt = features.built();

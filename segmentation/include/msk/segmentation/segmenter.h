@@ -52,6 +52,10 @@ struct SegmentOptions {
   double collisionFriction = 0;     ///< default friction μ ∈ [0, 1]
   double boneMassRatio = 5;     ///< bone particles are this many times heavier than muscle ones (share less of a contact)
   int collisionFinalSweeps = 10;  ///< collision-only detect + project sweeps after the last step (penetration clean-up)
+  int separationSweeps = 32;    ///< most sweeps of the output-surface separation of declared pairs (0 = none)
+  double radialStiffness = 0.1;   ///< default γ of the radial constraints of objects with a medial axis, [0, 1]
+  double axisSpacingMm = 8.0;     ///< default distance between medial-axis vertices, mm
+  double axisCentering = 0.5;     ///< γ of the axis re-centring on its surface per step, [0, 1]
   PbdOptions pbd;               ///< scheme settings
 };
 
@@ -94,10 +98,13 @@ struct SegmentationResult {
   std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
   int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
   int collisionSetsBuilt = 0;    ///< directed vertex–surface collision sets built over all levels (0 without pairs)
+  int medialAxesBuilt = 0;       ///< objects given a medial axis with radial constraints (0 unless a model asks)
   size_t overlapVoxels = 0;      ///< voxels inside more than one object's surface
-  /// Per declared pair (scene order): the deepest vertex of either object inside the other's final simplex surface
-  /// (mm, 0 if none), measured after the run.
+  /// Per declared pair (scene order): the deepest vertex of either output surface inside the other (winding-number
+  /// side, mm, 0 if none), measured on the meshes written out.
   std::vector<double> pairPenetrationMm;
+  int separationSweeps = 0;      ///< sweeps the output-surface separation ran
+  long separationCorrections = 0;  ///< vertex corrections it applied
 };
 
 /// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).
