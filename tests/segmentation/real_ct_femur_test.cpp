@@ -14,17 +14,7 @@
 
 namespace {
 /// Mid-sagittal plane: x (RAS mm) of the sacrum's centroid (label 25), a midline landmark; no femur label is used.
-double midSagittalX(const msk::LabelMap& labels) {
-  double sx = 0, n = 0;
-  for (int k = 0; k < labels.grid.dims[2]; ++k)
-    for (int j = 0; j < labels.grid.dims[1]; ++j)
-      for (int i = 0; i < labels.grid.dims[0]; ++i)
-        if (labels.at(i, j, k) == 25) {
-          sx += labels.grid.toWorld(Eigen::Vector3d(i, j, k)).x();
-          n += 1;
-        }
-  return sx / n;
-}
+double midSagittalX(const msk::LabelMap& labels) { return msk::test::labelCentroid(labels, 25).x(); }
 }  // namespace
 
 TEST(RealCtFemur, MirroredContralateralTemplate) {
@@ -34,8 +24,7 @@ TEST(RealCtFemur, MirroredContralateralTemplate) {
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
 
   const double midX = midSagittalX(labels);
-  const msk::TriangleMesh left = msk::templateFromLabels(labels, 75, msk::TemplateOptions{});
-  const msk::TriangleMesh templ = msk::mirrorMesh(left, Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
+  const msk::TriangleMesh templ = msk::test::mirroredTemplate(labels, 75, midX);
 
   msk::Scene scene;
   msk::SceneObject femur;
@@ -74,8 +63,7 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
     o.name = name;
     o.label = label;
     o.kind = msk::ObjectKind::Bone;
-    o.templ = msk::mirrorMesh(msk::templateFromLabels(labels, from, msk::TemplateOptions{}), Eigen::Vector3d(midX, 0, 0),
-                              Eigen::Vector3d::UnitX());
+    o.templ = msk::test::mirroredTemplate(labels, from, midX);
     scene.objects.push_back(o);
   }
   scene.collisions.push_back({0, 1});

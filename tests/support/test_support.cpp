@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -10,6 +11,8 @@
 #include <sstream>
 
 #include <sys/wait.h>
+
+#include "msk/core/error.h"
 
 namespace fs = std::filesystem;
 
@@ -88,6 +91,69 @@ std::string readBytes(const std::string& path) {
   std::stringstream ss;
   ss << f.rdbuf();
   return ss.str();
+}
+
+Eigen::Vector3d labelCentroid(const LabelMap& labels, int label) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double n = 0;
+  for (int k = 0; k < labels.grid.dims[2]; ++k)
+    for (int j = 0; j < labels.grid.dims[1]; ++j)
+      for (int i = 0; i < labels.grid.dims[0]; ++i)
+        if (labels.at(i, j, k) == label) {
+          sum += labels.grid.toWorld(Eigen::Vector3d(i, j, k));
+          n += 1;
+        }
+  if (n == 0) throw Error("label " + std::to_string(label) + " not found");
+  return sum / n;
+}
+
+TriangleMesh mirroredTemplate(const LabelMap& labels, int fromLabel, double midX, const TemplateOptions& opts) {
+  return mirrorMesh(templateFromLabels(labels, fromLabel, opts), Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
+}
+
+TriangleMesh displacedScaled(const TriangleMesh& mesh, const Eigen::Vector3d& offsetMm, double scale) {
+  TriangleMesh out = mesh;
+  const Eigen::RowVector3d c = mesh.vertices.colwise().mean();
+  out.vertices = ((mesh.vertices.rowwise() - c) * scale).rowwise() + (c + offsetMm.transpose());
+  return out;
+}
+
+void voxelBox(const Grid& grid, const std::vector<TriangleMesh>& meshes, double marginMm, Eigen::Vector3i& lo,
+              Eigen::Vector3i& hi) {
+  Eigen::Vector3d a = Eigen::Vector3d::Constant(1e300), b = Eigen::Vector3d::Constant(-1e300);
+  for (const TriangleMesh& m : meshes)
+    for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+      const Eigen::Vector3d p = grid.toVoxel(m.vertices.row(v).transpose());
+      a = a.cwiseMin(p);
+      b = b.cwiseMax(p);
+    }
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(marginMm).cwiseQuotient(grid.spacing);
+  for (int d = 0; d < 3; ++d) {
+    lo[d] = std::clamp(static_cast<int>(std::floor(a[d] - margin[d])), 0, grid.dims[d] - 1);
+    hi[d] = std::clamp(static_cast<int>(std::ceil(b[d] + margin[d])), lo[d], grid.dims[d] - 1);
+  }
+}
+
+namespace {
+template <typename T>
+Volume<T> cropAny(const Volume<T>& v, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
+  Grid g = v.grid;
+  g.dims = hi - lo + Eigen::Vector3i::Ones();
+  g.origin = v.grid.toWorld(lo.cast<double>());
+  Volume<T> out(g);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) out.at(i, j, k) = v.at(i + lo[0], j + lo[1], k + lo[2]);
+  return out;
+}
+}  // namespace
+
+ImageF cropVolume(const ImageF& image, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
+  return cropAny(image, lo, hi);
+}
+
+LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
+  return cropAny(labels, lo, hi);
 }
 
 }  // namespace msk::test

@@ -1,7 +1,14 @@
 #pragma once
-/// Shared test helpers: scratch folders, the real-data folder, running the mskseg program.
+/// Shared test helpers: scratch folders, the real-data folder, running the mskseg program, and the real-scan helpers
+/// (label centroids, contralateral templates, cropping).
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/triangle_mesh.h"
+#include "msk/imaging/volume.h"
+#include "msk/segmentation/template_builder.h"
 
 namespace msk::test {
 
@@ -45,5 +52,24 @@ void expectOneLineError(const CliResult& r, int code, const std::string& file, c
 void writeBytes(const std::string& path, const std::string& bytes);
 /// Reads a whole file.
 std::string readBytes(const std::string& path);
+
+/// Centroid (world RAS mm) of the voxels carrying `label`; throws msk::Error if there are none.
+Eigen::Vector3d labelCentroid(const LabelMap& labels, int label);
+
+/// Template of the other side: the smooth template of `fromLabel`, mirrored across the sagittal plane x = `midX`
+/// (RAS mm).
+TriangleMesh mirroredTemplate(const LabelMap& labels, int fromLabel, double midX, const TemplateOptions& opts = {});
+
+/// The mesh scaled by `scale` about its vertex centroid, then moved by `offsetMm` (a template never exactly in place).
+TriangleMesh displacedScaled(const TriangleMesh& mesh, const Eigen::Vector3d& offsetMm, double scale);
+
+/// Voxel box [lo, hi] (inclusive, clipped to the grid) holding every vertex of `meshes` plus `marginMm`.
+void voxelBox(const Grid& grid, const std::vector<TriangleMesh>& meshes, double marginMm, Eigen::Vector3i& lo,
+              Eigen::Vector3i& hi);
+
+/// The sub-volume of voxels [lo, hi] (inclusive), on a grid with the same spacing and direction (world positions kept).
+ImageF cropVolume(const ImageF& image, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi);
+/// Same for a label map.
+LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi);
 
 }  // namespace msk::test
