@@ -216,7 +216,7 @@ struct Solver::Impl {
             for (int j = 0; j < row.count; ++j)
               if (w[row.index[j]] > 0) ++counts[row.index[j]];
           }
-      } else {
+      } else if (opts.rowless == RowlessSets::Blend) {
         SetCache& c = caches[s->uid()];
         c.diff = p;
         s->project(c.diff, w);
@@ -238,7 +238,7 @@ struct Solver::Impl {
           for (int j = 0; j < row.count; ++j) most = std::max(most, counts[row.index[j]]);
           applyRow(row, c.lambda[i], opts.omega / most, p);
         });
-      } else {
+      } else if (opts.rowless == RowlessSets::Blend) {
         SetCache& c = caches[s->uid()];
         int most = 1;
         for (int i = 0; i < n; ++i)
@@ -247,6 +247,30 @@ struct Solver::Impl {
       }
       addSeconds(*s, t0);
     }
+    if (opts.rowless == RowlessSets::Project) projectRowless(sets, p);
+  }
+
+  /// Projects the sets without rows on `q`, in order (RowlessSets::Project).
+  void projectRowless(const std::vector<ConstraintSet*>& sets, Points& q) {
+    for (ConstraintSet* s : sets) {
+      if (s->rowCount() > 0) continue;
+      const auto t0 = Clock::now();
+      s->project(q, w);
+      addSeconds(*s, t0);
+    }
+  }
+
+  /// Force-based schemes with RowlessSets::Project: projects the sets without rows on x after a substep of length h
+  /// and lets the velocities follow (v += Δx / h).
+  void correctRowless(const std::vector<ConstraintSet*>& sets, double h) {
+    if (opts.rowless != RowlessSets::Project) return;
+    bool any = false;
+    for (ConstraintSet* s : sets) any = any || s->rowCount() == 0;
+    if (!any) return;
+    scratch = x;
+    projectRowless(sets, x);
+    for (int i = 0; i < x.rows(); ++i)
+      if (w[i] > 0) v.row(i) += (x.row(i) - scratch.row(i)) / h;
   }
 
   void positionSubstep(const std::vector<ConstraintSet*>& sets, double h) {
@@ -310,7 +334,7 @@ struct Solver::Impl {
           c.dir[i] = u;
           c.active[i] = 1;
         });
-      } else {
+      } else if (opts.rowless == RowlessSets::Blend) {
         scratch = x;
         s->project(scratch, w);
         for (int i = 0; i < n; ++i) {
@@ -336,6 +360,7 @@ struct Solver::Impl {
         v.row(i).setZero();
       }
     }
+    correctRowless(sets, h);
   }
 
   /// 3×3 block of one row in the implicit matrix: h β uuᵀ + h² α S, applied to s.
@@ -451,6 +476,7 @@ struct Solver::Impl {
         v.row(i).setZero();
       }
     }
+    correctRowless(sets, h);
   }
 };
 

@@ -10,9 +10,8 @@
 ///   solver.step(sets);                               // as PbdSolver::step
 ///
 /// Sets that expose rows (ConstraintRow: 2-simplex internal, image targets, global prior, radial, 3-simplex) run in
-/// every form; a set without rows (collisions) is projected with ConstraintSet::project() by the position-based
-/// schemes and, in the force-based ones, turned into forces F = M Δp / dt² of a projection on a copy of the positions
-/// with the isotropic diagonal derivative −M dt⁻² I.
+/// every form; a set without rows (collisions) is projected with ConstraintSet::project() by the Gauss–Seidel and
+/// XPBD schemes, and by Jacobi and the force-based ones as SolverOptions::rowless says.
 #include <map>
 #include <memory>
 #include <string>
@@ -43,6 +42,14 @@ Scheme parseScheme(const std::string& name);
 /// Every scheme, in declaration order.
 std::vector<Scheme> allSchemes();
 
+/// How Jacobi and the force-based schemes treat a set without rows (collisions).
+enum class RowlessSets {
+  Project,  ///< projected in order on the positions after each Jacobi iteration or force-based substep, the
+            ///< velocities following the correction (collision response by position correction, DESIGN-NOTES §3)
+  Blend     ///< Jacobi: averaged with the rows' corrections; force-based: forces M Δp dt⁻² of a projection on a copy
+            ///< with the isotropic diagonal derivative −M dt⁻² I
+};
+
 /// Settings of Solver (user input). dt, iterations, damping and drag mean what they mean in PbdOptions.
 struct SolverOptions {
   Scheme scheme = Scheme::GaussSeidel;  ///< evolution scheme
@@ -58,6 +65,7 @@ struct SolverOptions {
   int cgIterations = 200;    ///< implicit: most conjugate-gradient iterations per substep (≥ 1)
   double cgTolerance = 1e-10;  ///< implicit: stop when the preconditioned residual falls below this share (> 0)
   int threads = 1;           ///< threads (≥ 1; 0 = all cores); results do not depend on it
+  RowlessSets rowless = RowlessSets::Project;  ///< sets without rows under Jacobi and the force-based schemes
 
   /// The position-based Gauss–Seidel scheme with the settings of `pbd` (what PbdSolver runs).
   static SolverOptions fromPbd(const PbdOptions& pbd);
