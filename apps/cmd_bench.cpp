@@ -17,6 +17,8 @@
 #include "commands.h"
 #include "msk/core/error.h"
 #include "msk/core/json.h"
+#include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/multi_phantom.h"
 #include "msk/segmentation/phantom.h"
@@ -117,7 +119,9 @@ int benchScene(const std::vector<std::string>& argv) {
                  "  --spacing     voxel size in mm                         (default 1.2,1.2,3)\n"
                  "  --vertices    vertices of each template/truth mesh     (default 3000)\n"
                  "  --no-collisions  ignore the collision pairs\n"
-                 "  --out         also write bench.json and objects.csv into DIR (atomically)\n";
+                 "  --out         also write bench.json, objects.csv, the result label map (labels.nii.gz) and\n"
+                 "                surfaces (result_<name>.vtk, LPS) into DIR, atomically; `mskseg phantom\n"
+                 "                --structures N --seed S` writes the matching image, truth and templates\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -186,7 +190,17 @@ int benchScene(const std::vector<std::string>& argv) {
               qualityName(sopts.quality), res.settings.levels, vertexCount, sopts.collisions ? "on" : "off");
   std::printf("\ntime per stage (s, wall)\n");
   std::printf("  %-22s %8.2f  (cpu %.2f)\n", "generation", generationSeconds, generationCpu);
-  for (const auto& [stage, s] : res.secondsPerStage) std::printf("  %-22s %8.2f\n", stage.c_str(), s);
+  // The pipeline's stages in run order (collision detection is timed inside the evolution), then any others.
+  std::map<std::string, double> stagesLeft = res.secondsPerStage;
+  for (const char* stage : {"features", "evolution", "collision-detection", "separation", "rasterise"}) {
+    const auto it = stagesLeft.find(stage);
+    if (it == stagesLeft.end()) continue;
+    const bool inner = it->first == "collision-detection";
+    std::printf("  %s%-*s %8.2f%s\n", inner ? "  " : "", inner ? 20 : 22, it->first.c_str(), it->second,
+                inner ? "  (part of evolution)" : "");
+    stagesLeft.erase(it);
+  }
+  for (const auto& [stage, s] : stagesLeft) std::printf("  %-22s %8.2f\n", stage.c_str(), s);
   std::printf("  %-22s %8.2f  (segmentScene; cpu %.2f)\n", "segmentation total", res.seconds, segmentCpu);
   std::printf("  %-22s %8.2f\n", "scoring", scoreSeconds);
   std::printf("  %-22s %8.2f  (generation + segmentation, wall)\n", "whole", generationSeconds + segmentSeconds);
@@ -265,8 +279,12 @@ int benchScene(const std::vector<std::string>& argv) {
     writeFolderAtomically(out, [&](const std::string& staging) {
       j.writeFile(staging + "/bench.json");
       writeCsv(staging + "/objects.csv", figures);
+      int maxLabel = 0;
+      for (const ObjectResult& o : res.objects) maxLabel = std::max(maxLabel, o.label);
+      writeNifti(staging + "/labels.nii.gz", res.labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16);
+      for (const ObjectResult& o : res.objects) writeMesh(staging + "/result_" + o.name + ".vtk", o.mesh, MeshSpace::LPS);
     });
-    std::printf("figures written to %s (bench.json, objects.csv)\n", out.c_str());
+    std::printf("figures written to %s (bench.json, objects.csv, labels.nii.gz, result_<name>.vtk)\n", out.c_str());
   }
   return 0;
 }
