@@ -177,7 +177,8 @@ struct Solver::Impl {
         dl = (-row.gamma / W) * row.c;
       } else {
         // XPBD (Macklin et al. 2016, eq. 18): Δλ = (−C − α̃ λ) / (W + α̃), α̃ = 1 / (k γ h²).
-        const double kr = k * row.gamma;
+        double kr = k * row.gamma;  // row stiffness
+        if (opts.xpbdStiffness == XpbdStiffness::MassRelative) kr /= W * opts.dt * opts.dt;  // k α, α = γ m̄ dt⁻²
         if (!(kr > 0)) return;
         const double alphaT = std::isinf(kr) ? 0.0 : 1.0 / (kr * xpbdStep * xpbdStep);
         if (!std::isfinite(alphaT)) return;

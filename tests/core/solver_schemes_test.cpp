@@ -569,3 +569,28 @@ TEST(SolverFigures, InternalProjectionsPerSecond) {
     }
   }
 }
+
+// XPBD with mass-relative stiffness k = 1 has the stiffness of the force-based schemes (α = γ m̄ dt⁻²), so its steady
+// state under competing constraints is the implicit scheme's equilibrium; and it does not change with the mass scale.
+TEST(SolverSchemes, MassRelativeXpbdSharesTheForceBasedEquilibrium) {
+  const SphereProblem s = makeSphere(1, false, 0.0);
+  const std::vector<msk::ConstraintSet*> sets = {s.internal.get(), s.targets.get()};
+  auto steady = [&](SolverOptions o, double massScale) {
+    msk::Solver solver(o);
+    solver.prepare(s.x0, s.w / massScale);
+    for (int i = 0; i < 600; ++i) solver.step(sets);
+    return Points(solver.positions());
+  };
+  SolverOptions x = optionsFor(Scheme::Xpbd);
+  x.xpbdStiffness = msk::XpbdStiffness::MassRelative;
+  x.stiffness = 1.0;
+  x.iterations = 20;
+  const Points xp = steady(x, 1.0), xpHeavy = steady(x, 1e6);
+  const Points im = steady(optionsFor(Scheme::Implicit), 1.0);
+  const double moved = (im - s.x0).rowwise().norm().maxCoeff();
+  ASSERT_GT(moved, 0.5);
+  const double dev = (xp - im).rowwise().norm().maxCoeff() / moved;
+  std::printf("[ figures  ] mass-relative xpbd vs implicit steady state: %.3f %% of %.2f mm\n", 100 * dev, moved);
+  EXPECT_LT(dev, 0.02);
+  EXPECT_LT((xp - xpHeavy).rowwise().norm().maxCoeff(), 1e-6 * moved);
+}

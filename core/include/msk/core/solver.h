@@ -50,6 +50,14 @@ enum class RowlessSets {
             ///< with the isotropic diagonal derivative −M dt⁻² I
 };
 
+/// What SolverOptions::stiffness means to XPBD.
+enum class XpbdStiffness {
+  Absolute,     ///< k in mass · time⁻²: row stiffness k γ, compliance α̃ = 1 / (k γ h²), h the substep
+  MassRelative  ///< k dimensionless: row stiffness k times the force stiffness α = γ m̄ dt⁻² of DESIGN-NOTES §2, so
+                ///< α̃ = W dt² / (k γ h²); k = 1 shares its stiffness (and equilibrium) with the force-based schemes,
+                ///< and no mass or time scale enters
+};
+
 /// Settings of Solver (user input). dt, iterations, damping and drag mean what they mean in PbdOptions.
 struct SolverOptions {
   Scheme scheme = Scheme::GaussSeidel;  ///< evolution scheme
@@ -59,7 +67,8 @@ struct SolverOptions {
   double damping = 0.5;      ///< ∈ [0, 1]: share of each velocity's deviation from the rigid motion removed per step
   double drag = 0.5;         ///< ∈ [0, 1]: share of the remaining velocity removed per step (1 = quasi-static)
   double omega = 1.0;        ///< Jacobi relaxation ω ∈ (0, 2): scales every averaged correction
-  double stiffness = 1.0;    ///< XPBD stiffness k ≥ 0 (mass · time⁻²; +inf = hard, 0 = off), times each row's γ
+  double stiffness = 1.0;    ///< XPBD stiffness k ≥ 0 (see xpbdStiffness; +inf = hard, 0 = off), times each row's γ
+  XpbdStiffness xpbdStiffness = XpbdStiffness::Absolute;  ///< unit of `stiffness`
   double forceDamping = 1.0; ///< force-based: damping ratio ζ ≥ 0 of the projected damping F = −β (v·F̂) F̂, β = 2ζ√(α m̄)
   double anisotropy = 0.9;   ///< force-based: k ∈ [0, 1] of direction targets, ∂F/∂P ≈ −α (k I + (1 − k) uuᵀ)
   int cgIterations = 200;    ///< implicit: most conjugate-gradient iterations per substep (≥ 1)
