@@ -1,6 +1,8 @@
 // mskseg bench: benchmarks that print figures (time per stage, accuracy, memory). One subcommand per benchmark,
 // dispatched on the first positional word; `mskseg bench --help` lists them.
 #include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -24,6 +26,7 @@
 #include "msk/segmentation/phantom.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
+#include "msk/segmentation/tradeoff_plot.h"
 
 namespace msk::cli {
 
@@ -204,6 +207,8 @@ int benchScene(const std::vector<std::string>& argv) {
   std::printf("  %-22s %8.2f  (segmentScene; cpu %.2f)\n", "segmentation total", res.seconds, segmentCpu);
   std::printf("  %-22s %8.2f\n", "scoring", scoreSeconds);
   std::printf("  %-22s %8.2f  (generation + segmentation, wall)\n", "whole", generationSeconds + segmentSeconds);
+  std::printf("built: %d image scales, %d directed collision sets; output separation: %d sweeps, %ld corrections\n",
+              res.featureScalesBuilt, res.collisionSetsBuilt, res.separationSweeps, res.separationCorrections);
   std::printf("\nprojection time per constraint family, summed over objects (s)\n");
   for (const auto& [family, s] : families) std::printf("  %-22s %8.2f\n", family.c_str(), s);
   std::printf("\npeak memory (RSS): %.0f MiB\n", peak);
@@ -253,6 +258,10 @@ int benchScene(const std::vector<std::string>& argv) {
     j["seconds_per_family"] = std::move(fam);
     j["peak_rss_mib"] = peak;
     j["overlap_voxels"] = static_cast<unsigned long>(res.overlapVoxels);
+    j["feature_scales_built"] = res.featureScalesBuilt;
+    j["collision_sets_built"] = res.collisionSetsBuilt;
+    j["separation_sweeps"] = res.separationSweeps;
+    j["separation_corrections"] = static_cast<long>(res.separationCorrections);
     Json objs = Json::array();
     for (const ObjectFigures& f : figures) {
       Json o = Json::object();
@@ -289,6 +298,318 @@ int benchScene(const std::vector<std::string>& argv) {
   return 0;
 }
 
+// ---- bench tradeoff ----------------------------------------------------------------------------------------------
+
+// One setting of the trade: a scheme on the balanced schedule, or a preset as shipped.
+struct TradeoffConfig {
+  std::string name;      // "xpbd 2x2", "preset fast"
+  std::string scheme;    // scheme name, or "" for the preset's own
+  std::string preset;    // fast | balanced | accurate
+  int substeps = 0, iterations = 0;  // 0 = the preset's
+  bool isPreset = false;
+};
+
+// What a forked run sends back through its pipe.
+struct TradeoffRunResult {
+  int ok = 0;
+  int steps = 0, levels = 0, maxSteps = 0, substeps = 0, iterations = 0;
+  double seconds = 0, dice = 0, assdMm = 0, toleranceMm = 0;
+  char scheme[32] = {0};
+  char error[256] = {0};
+};
+
+struct TradeoffRow {
+  TradeoffConfig config;
+  uint32_t seed = 0;
+  TradeoffRunResult run;
+  double peakRssMiB = 0;
+};
+
+// The schemes on the balanced schedule (2 levels × 50 steps), each at the substeps × iterations it needs.
+std::vector<TradeoffConfig> tradeoffSchemeConfigs() {
+  return {{"gauss-seidel 1x1", "gauss-seidel", "balanced", 1, 1, false},
+          {"coloured-gauss-seidel 1x1", "coloured-gauss-seidel", "balanced", 1, 1, false},
+          {"jacobi 1x2", "jacobi", "balanced", 1, 2, false},
+          {"xpbd 2x2", "xpbd", "balanced", 2, 2, false},
+          {"explicit 4x1", "explicit", "balanced", 4, 1, false},
+          {"implicit 1x1", "implicit", "balanced", 1, 1, false}};
+}
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    if (!item.empty()) out.push_back(item);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+// Runs one configuration on one phantom in a forked child, so each run's peak memory is its own (wait4's
+// ru_maxrss; the child starts as a copy of this process, phantom included). Time is segmentScene's own.
+TradeoffRow runTradeoff(const Phantom& ph, uint32_t seed, const TradeoffConfig& config, int threads) {
+  TradeoffRow row;
+  row.config = config;
+  row.seed = seed;
+  int fds[2];
+  if (pipe(fds) != 0) throw Error("bench tradeoff: cannot create a pipe");
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = fork();
+  if (pid < 0) throw Error("bench tradeoff: cannot fork");
+  if (pid == 0) {
+    close(fds[0]);
+    TradeoffRunResult r;
+    try {
+      Scene scene;
+      scene.path = "(generated phantom: femur)";
+      SceneObject femur;
+      femur.name = ph.objects[0].name;
+      femur.label = ph.objects[0].label;
+      femur.kind = ObjectKind::Bone;
+      femur.templ = ph.objects[0].templ;
+      scene.objects.push_back(femur);
+      SegmentOptions o;
+      o.quality = parseQuality(config.preset);
+      if (!config.scheme.empty()) o.scheme = parseScheme(config.scheme);
+      o.substeps = config.substeps;
+      o.iterations = config.iterations;
+      o.threads = threads;
+      const SegmentationResult res = segmentScene(ph.image, scene, o);
+      r.seconds = res.seconds;
+      r.levels = res.settings.levels;
+      r.maxSteps = res.settings.maxStepsPerLevel;
+      r.toleranceMm = res.settings.toleranceMm;
+      r.substeps = res.settings.solver.substeps;
+      r.iterations = res.settings.solver.iterations;
+      std::snprintf(r.scheme, sizeof r.scheme, "%s", schemeName(res.settings.solver.scheme).c_str());
+      for (const LevelReport& l : res.objects[0].levels) r.steps += l.steps;
+      r.dice = labelMetrics(res.labels, femur.label, ph.labels, femur.label).dice;
+      r.assdMm = meshMetrics(res.objects[0].mesh, ph.objects[0].truth).assd;
+      r.ok = 1;
+    } catch (const std::exception& e) {
+      std::snprintf(r.error, sizeof r.error, "%s", e.what());
+    }
+    const char* p = reinterpret_cast<const char*>(&r);
+    size_t left = sizeof r;
+    while (left > 0) {
+      const ssize_t n = write(fds[1], p, left);
+      if (n <= 0) break;
+      p += n;
+      left -= static_cast<size_t>(n);
+    }
+    close(fds[1]);
+    _exit(0);
+  }
+  close(fds[1]);
+  char* p = reinterpret_cast<char*>(&row.run);
+  size_t got = 0;
+  while (got < sizeof row.run) {
+    const ssize_t n = read(fds[0], p + got, sizeof row.run - got);
+    if (n <= 0) break;
+    got += static_cast<size_t>(n);
+  }
+  close(fds[0]);
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  row.peakRssMiB = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  if (got != sizeof row.run) {
+    row.run = TradeoffRunResult{};
+    std::snprintf(row.run.error, sizeof row.run.error, "run ended abnormally (status %d)", status);
+  }
+  return row;
+}
+
+int benchTradeoff(const std::vector<std::string>& argv) {
+  Args args(argv, {"phantoms", "out", "seed", "threads", "schemes", "presets"}, {"help"});
+  if (args.has("help")) {
+    std::cout << "usage: mskseg bench tradeoff --phantoms N --out DIR [--seed S] [--threads N]\n\n"
+                 "The speed/accuracy trade (issue 5): generates N thigh phantoms (seeds S..S+N-1, voxel size and grid\n"
+                 "obliquity varied), segments the femur of each from its mean template with every scheme (on the\n"
+                 "balanced schedule: 2 levels x 50 steps) and every --quality preset, each run in a child process, and\n"
+                 "writes atomically into DIR:\n"
+                 "  tradeoff.csv  one row per run and one mean row per setting: scheme, preset, levels, steps cap,\n"
+                 "                tolerance, substeps, iterations, steps taken, seconds, Dice, mesh ASSD (mm) against\n"
+                 "                the truth surface, peak RSS of the run (MiB)\n"
+                 "  tradeoff.png  mean ASSD against mean time per setting, the Pareto front marked\n"
+                 "Prints the table and checks the issue's demands (fast >= 5x faster than accurate; accurate at least\n"
+                 "as accurate as every row). Progress on stderr.\n"
+                 "  --phantoms  number of phantoms, 1..50\n"
+                 "  --seed      first phantom seed (default 1)\n"
+                 "  --threads   threads of the coloured, Jacobi and CG schemes (default 1)\n";
+    return 0;
+  }
+  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
+  if (!args.has("phantoms")) throw UsageError("missing --phantoms N");
+  if (!args.has("out")) throw UsageError("missing --out DIR");
+  const long phantoms = args.integer("phantoms", 1);
+  if (phantoms < 1 || phantoms > 50) throw ParameterError("--phantoms", args.str("phantoms"), "must be 1..50");
+  const long seed0 = args.integer("seed", 1);
+  if (seed0 < 0 || seed0 + phantoms > 0xffffffffL) throw ParameterError("--seed", args.str("seed"), "must be in [0, 2^32 - N)");
+  const long threads = args.integer("threads", 1);
+  if (threads < 0 || threads > 1024) throw ParameterError("--threads", args.str("threads"), "must be 0..1024");
+  const std::string out = args.str("out");
+  // Hidden subset options (tests, quick looks): --schemes a,b (scheme names or "none") and --presets x,y ("none").
+  std::vector<TradeoffConfig> configs;
+  {
+    std::vector<std::string> schemes, presets = {"fast", "balanced", "accurate"};
+    for (const TradeoffConfig& c : tradeoffSchemeConfigs()) schemes.push_back(c.scheme);
+    if (args.has("schemes")) schemes = splitList(args.str("schemes"));
+    if (args.has("presets")) presets = splitList(args.str("presets"));
+    for (const std::string& s : schemes) {
+      if (s == "none") continue;
+      const std::string name = schemeName(parseScheme(s));  // validates (ParameterError names the choices)
+      for (const TradeoffConfig& c : tradeoffSchemeConfigs())
+        if (c.scheme == name) configs.push_back(c);
+    }
+    for (const std::string& p : presets) {
+      if (p == "none") continue;
+      TradeoffConfig c;
+      c.preset = qualityName(parseQuality(p));
+      c.name = "preset " + c.preset;
+      c.isPreset = true;
+      configs.push_back(c);
+    }
+    if (configs.empty()) throw UsageError("nothing to run (--schemes and --presets both empty)");
+  }
+
+  // Phantoms vary a little in voxel size and obliquity (as the femur acceptance test does).
+  const Eigen::Vector3d spacings[] = {{1.2, 1.2, 3}, {1, 1.5, 2.5}, {0.9, 0.9, 4}, {1.5, 1.5, 1.5}};
+  const Eigen::Vector3d obliques[] = {{0, 0, 0}, {10, -15, 20}, {0, 0, 0}, {-20, 10, 5}, {0, 0, 30}};
+  std::vector<TradeoffRow> rows;
+  const Clock::time_point start = Clock::now();
+  for (long k = 0; k < phantoms; ++k) {
+    PhantomOptions po;
+    po.seed = static_cast<uint32_t>(seed0 + k);
+    po.spacing = spacings[k % 4];
+    po.obliqueDegrees = obliques[k % 5];
+    std::fprintf(stderr, "tradeoff: phantom %ld/%ld (seed %u, %gx%gx%g mm, oblique %g,%g,%g deg)\n", k + 1, phantoms,
+                 po.seed, po.spacing[0], po.spacing[1], po.spacing[2], po.obliqueDegrees[0], po.obliqueDegrees[1],
+                 po.obliqueDegrees[2]);
+    const Phantom ph = makePhantom(po);
+    for (size_t c = 0; c < configs.size(); ++c) {
+      TradeoffRow row = runTradeoff(ph, po.seed, configs[c], static_cast<int>(threads));
+      if (row.run.ok)
+        std::fprintf(stderr, "tradeoff:   %-28s %6.2f s  %4d steps  Dice %.4f  ASSD %.3f mm  peak %.0f MiB\n",
+                     configs[c].name.c_str(), row.run.seconds, row.run.steps, row.run.dice, row.run.assdMm, row.peakRssMiB);
+      else
+        std::fprintf(stderr, "tradeoff:   %-28s failed: %s\n", configs[c].name.c_str(), row.run.error);
+      rows.push_back(row);
+    }
+  }
+
+  // Means per setting over the phantoms (failed runs count as missing; a setting with any failure is flagged).
+  struct Mean {
+    TradeoffConfig config;
+    TradeoffRunResult first;
+    double seconds = 0, dice = 0, assd = 0, steps = 0, peak = 0;
+    int ok = 0, failed = 0;
+  };
+  std::vector<Mean> means(configs.size());
+  for (size_t c = 0; c < configs.size(); ++c) {
+    means[c].config = configs[c];
+    for (size_t r = c; r < rows.size(); r += configs.size()) {
+      const TradeoffRow& row = rows[r];
+      if (!row.run.ok) {
+        ++means[c].failed;
+        continue;
+      }
+      if (means[c].ok == 0) means[c].first = row.run;
+      ++means[c].ok;
+      means[c].seconds += row.run.seconds;
+      means[c].dice += row.run.dice;
+      means[c].assd += row.run.assdMm;
+      means[c].steps += row.run.steps;
+      means[c].peak = std::max(means[c].peak, row.peakRssMiB);
+    }
+    if (means[c].ok > 0) {
+      const double n = means[c].ok;
+      means[c].seconds /= n;
+      means[c].dice /= n;
+      means[c].assd /= n;
+      means[c].steps /= n;
+    }
+  }
+
+  // Table.
+  std::printf("speed/accuracy trade: femur of %ld thigh phantom(s) (seeds %ld..%ld), from the mean template; %.0f s in all\n",
+              phantoms, seed0, seed0 + phantoms - 1, secondsSince(start));
+  std::printf("%-26s %-21s %3s %5s %7s %5s %6s %8s %7s %8s %8s %8s\n", "setting", "scheme", "lev", "steps", "tol mm",
+              "sub", "iter", "steps run", "s/run", "Dice", "ASSD mm", "peak MiB");
+  for (const Mean& m : means) {
+    if (m.ok == 0) {
+      std::printf("%-26s failed on every phantom\n", m.config.name.c_str());
+      continue;
+    }
+    std::printf("%-26s %-21s %3d %5d %7.3f %5d %6d %8.1f %7.2f %8.4f %8.3f %8.0f%s\n", m.config.name.c_str(),
+                m.first.scheme, m.first.levels, m.first.maxSteps, m.first.toleranceMm, m.first.substeps,
+                m.first.iterations, m.steps, m.seconds, m.dice, m.assd, m.peak,
+                m.failed ? (" (" + std::to_string(m.failed) + " failed)").c_str() : "");
+  }
+  // The issue's demands, checked on the means.
+  const auto find = [&](const std::string& name) -> const Mean* {
+    for (const Mean& m : means)
+      if (m.config.name == name && m.ok > 0) return &m;
+    return nullptr;
+  };
+  const Mean* fast = find("preset fast");
+  const Mean* accurate = find("preset accurate");
+  if (fast && accurate) {
+    const double ratio = accurate->seconds / fast->seconds;
+    std::printf("check fast >= 5x faster than accurate: %s (%.2f s vs %.2f s, %.1fx)\n", ratio >= 5 ? "holds" : "NOT MET",
+                fast->seconds, accurate->seconds, ratio);
+  }
+  if (accurate) {
+    const Mean* best = nullptr;
+    for (const Mean& m : means)
+      if (m.ok > 0 && &m != accurate && (!best || m.assd < best->assd)) best = &m;
+    if (best)
+      std::printf("check accurate at least as accurate as every row (ASSD): %s (accurate %.3f mm Dice %.4f; best other "
+                  "%s %.3f mm Dice %.4f)\n",
+                  accurate->assd <= best->assd ? "holds" : "NOT MET", accurate->assd, accurate->dice,
+                  best->config.name.c_str(), best->assd, best->dice);
+  }
+  std::fflush(stdout);
+
+  std::vector<TradeoffPoint> points;
+  for (const Mean& m : means)
+    if (m.ok > 0) points.push_back({m.config.name, m.seconds, m.assd, m.config.isPreset});
+  writeFolderAtomically(out, [&](const std::string& staging) {
+    const std::string csv = staging + "/tradeoff.csv";
+    std::ofstream f(csv);
+    if (!f) throw IoError(csv, "cannot write");
+    f << "phantom,seed,setting,scheme,preset,levels,max_steps_per_level,tolerance_mm,substeps,iterations,steps,seconds,"
+         "dice,assd_mm,peak_rss_mib,ok\n";
+    char line[512];
+    for (const TradeoffRow& r : rows) {
+      std::snprintf(line, sizeof line, "%u,%u,%s,%s,%s,%d,%d,%.4f,%d,%d,%d,%.3f,%.4f,%.4f,%.1f,%d\n", r.seed, r.seed,
+                    r.config.name.c_str(), r.run.ok ? r.run.scheme : r.config.scheme.c_str(), r.config.preset.c_str(),
+                    r.run.levels, r.run.maxSteps, r.run.toleranceMm, r.run.substeps, r.run.iterations, r.run.steps,
+                    r.run.seconds, r.run.dice, r.run.assdMm, r.peakRssMiB, r.run.ok);
+      f << line;
+    }
+    for (const Mean& m : means) {
+      if (m.ok == 0) continue;
+      std::snprintf(line, sizeof line, "mean,,%s,%s,%s,%d,%d,%.4f,%d,%d,%.1f,%.3f,%.4f,%.4f,%.1f,%d\n",
+                    m.config.name.c_str(), m.first.scheme, m.config.preset.c_str(), m.first.levels, m.first.maxSteps,
+                    m.first.toleranceMm, m.first.substeps, m.first.iterations, m.steps, m.seconds, m.dice, m.assd,
+                    m.peak, m.failed == 0 ? 1 : 0);
+      f << line;
+    }
+    f.close();
+    if (!f) throw IoError(csv, "write failed");
+    char title[160];
+    std::snprintf(title, sizeof title, "femur, %ld phantom(s): mean mesh ASSD vs mean time per run", phantoms);
+    writeTradeoffPlot(staging + "/tradeoff.png", points, title, "mesh ASSD to truth (mm)");
+  });
+  std::printf("written %s/tradeoff.csv and %s/tradeoff.png\n", out.c_str(), out.c_str());
+  return 0;
+}
+
 struct Subcommand {
   std::function<int(const std::vector<std::string>&)> run;
   const char* summary;
@@ -297,6 +618,7 @@ struct Subcommand {
 const std::map<std::string, Subcommand>& subcommands() {
   static const std::map<std::string, Subcommand> table = {
       {"scene", {benchScene, "segment a synthetic multi-structure phantom scene; time per stage, accuracy, memory"}},
+      {"tradeoff", {benchTradeoff, "every scheme and preset on N phantoms: time vs accuracy CSV and plot"}},
   };
   return table;
 }
@@ -310,7 +632,7 @@ void printBenchHelp() {
 }  // namespace
 
 int cmdBench(const std::vector<std::string>& args) {
-  if (args.empty()) throw UsageError("missing benchmark name (one of: scene)");
+  if (args.empty()) throw UsageError("missing benchmark name (one of: scene, tradeoff)");
   if (args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     printBenchHelp();
     return 0;
