@@ -18,6 +18,7 @@
 #include "msk/core/constraints.h"
 #include "msk/core/medial_axis.h"
 #include "msk/core/simplex_mesh.h"
+#include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
 
@@ -63,11 +64,12 @@ msk::Points perturbed(const msk::Points& p, double amplitude, unsigned seed = 1)
   return q;
 }
 
-/// Records items (projections), the complexity N and the usual counters.
-void finish(benchmark::State& state, int64_t perSweep, int64_t n) {
+/// Records items (projections), the complexity N (default: the vertex count n) and the usual counters.
+void finish(benchmark::State& state, int64_t perSweep, int64_t n, int64_t complexityN = -1) {
   state.SetItemsProcessed(state.iterations() * perSweep);
-  state.SetComplexityN(n);
+  state.SetComplexityN(complexityN >= 0 ? complexityN : n);
   state.counters["vertices"] = static_cast<double>(n);
+  state.counters["complexity_n"] = static_cast<double>(complexityN >= 0 ? complexityN : n);
   state.counters["ns_per_item"] = benchmark::Counter(static_cast<double>(perSweep) * state.iterations(),
                                                      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
@@ -120,6 +122,32 @@ void BM_SimplexInternalKernelOnly(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_SimplexInternalKernelOnly);
+
+// The 2-simplex internal set run by the solver of every position-based scheme (solver.h), one thread, 10 iterations per
+// step from a sphere scaled by 1.05: items = iterations × vertices per step (colouring and caches set up untimed).
+void BM_SolverInternal(benchmark::State& state, msk::Scheme scheme) {
+  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const int n = s.vertexCount();
+  msk::SimplexInternalConstraints c(s, 1.0);
+  msk::SolverOptions o;
+  o.scheme = scheme;
+  o.iterations = 10;
+  o.threads = 1;
+  msk::Solver solver(o);
+  solver.prepare(1.05 * s.positions, Eigen::VectorXd::Ones(n));
+  const std::vector<msk::ConstraintSet*> sets = {&c};
+  solver.step(sets);
+  for (auto _ : state) benchmark::DoNotOptimize(solver.step(sets));
+  finish(state, static_cast<int64_t>(o.iterations) * n, n);
+}
+BENCHMARK_CAPTURE(BM_SolverInternal, gauss_seidel, msk::Scheme::GaussSeidel)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+BENCHMARK_CAPTURE(BM_SolverInternal, coloured, msk::Scheme::ColouredGaussSeidel)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
 
 // Image target constraints (one per vertex, weight 1).
 void BM_ImageTargets(benchmark::State& state) {
@@ -202,7 +230,8 @@ BENCHMARK(BM_CollisionDetectFixedSize)->DenseRange(kMinLevel, kMaxLevel)->Unit(b
 BENCHMARK(BM_CollisionDetectUnitEdge)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 
 // Collision projection over the contacts of one detection (positions restored, untimed, before every sweep so each
-// contact is violated). Items = contacts projected.
+// contact is violated). Items = contacts projected; complexity N = contacts (they lie along the intersection curve of
+// the two spheres, so they grow like √vertices here).
 void BM_CollisionProject(benchmark::State& state) {
   const int s = static_cast<int>(state.range(0));
   const CollisionPair c = collisionPair(s, unitEdgeRadius(s));
@@ -218,7 +247,7 @@ void BM_CollisionProject(benchmark::State& state) {
     benchmark::ClobberMemory();
   }
   state.counters["contacts"] = set.contacts();
-  finish(state, set.contacts(), c.na);
+  finish(state, set.contacts(), c.na, set.contacts());
 }
 BENCHMARK(BM_CollisionProject)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 

@@ -19,23 +19,29 @@ import json, math, sys
 from collections import defaultdict
 
 runs = json.load(open(sys.argv[1]))["benchmarks"]
-series = defaultdict(list)
+series, bigo = defaultdict(list), {}
 for r in runs:
+    name = r["name"]
+    if name.endswith("_BigO"):
+        bigo[name[: -len("_BigO")]] = f'{r.get("cpu_coefficient", float("nan")):.3g} {r.get("big_o", "?")}'
+    head, _, last = name.rpartition("/")
+    family = head if head and last.isdigit() else name
     if r.get("run_type") != "iteration" or "items_per_second" not in r:
         continue
-    family = r["name"].split("/")[0]
-    series[family].append((r.get("vertices", 0), r["items_per_second"], r["real_time"], r.get("time_unit", "us")))
+    n = r.get("complexity_n") or r.get("vertices", 0)
+    series[family].append((r.get("vertices", 0), n, r["items_per_second"], r["cpu_time"]))
 
-print("\nkernel summary (one core): M items/s per size; exponent b of time ∝ N^b over the sizes")
-print(f"{'benchmark':30s} {'b':>5s}  M items/s at N vertices")
+print("\nkernel summary (one core, CPU time): M items/s at N vertices; b = exponent of CPU time ~ N^b (least squares")
+print("over the sizes; N = vertices, contacts for BM_CollisionProject); BigO = benchmark's own fit (time unit per N)")
+print(f"{'benchmark':34s} {'b':>5s} {'BigO':>16s}  M items/s @ vertices")
 for family, pts in series.items():
     pts.sort()
-    rates = "  ".join(f"{ips / 1e6:7.2f}@{int(n):>7d}" if n else f"{ips / 1e6:7.2f}" for n, ips, _, _ in pts)
+    rates = "  ".join(f"{ips / 1e6:7.2f}@{int(v):>7d}" if v else f"{ips / 1e6:7.2f}" for v, _, ips, _ in pts)
     b = float("nan")
-    xs = [math.log(n) for n, _, _, _ in pts if n > 0]
-    ys = [math.log(t) for n, _, t, _ in pts if n > 0]
+    xs = [math.log(n) for _, n, _, _ in pts if n > 0]
+    ys = [math.log(t) for _, n, _, t in pts if n > 0]
     if len(xs) >= 2:
         mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
         b = sum((x - mx) * (y - my) for x, y in zip(xs, ys)) / sum((x - mx) ** 2 for x in xs)
-    print(f"{family:30s} {b:5.2f}  {rates}")
+    print(f"{family:34s} {b:5.2f} {bigo.get(family, ''):>16s}  {rates}")
 EOF

@@ -61,18 +61,30 @@ inline bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3],
   const Eigen::Vector3d mu(d.dot(a2.cross(a3)), d.dot(a3.cross(a1)), d.dot(a1.cross(a2)));
   const double sumMu = mu.sum();
   split = false;
+  const Eigen::Vector3d epsV(eps[0], eps[1], eps[2]);
   if (std::fabs(sumMu) > 0.05 * mu.cwiseAbs().sum() && std::fabs(sumMu) > 0) {
     lambda = mu / sumMu;
     split = true;
+    // The reactions λ are not the constraint gradient ε̃, so sequential projection is not a projection onto the
+    // constraint set; far from ε̃ a mode grows over many sweeps (a resting sphere drifted and then diverged,
+    // tests/core/extremes_test.cpp). Keep max|λi − ε̃i| ≤ 0.75 by pulling λ toward ε̃ (Σλ = 1 is kept, so linear
+    // momentum still is; only the exact split is torque-free).
+    const double deviation = (lambda - epsV).cwiseAbs().maxCoeff();
+    if (deviation > 0.75) {
+      lambda = epsV + (0.75 / deviation) * (lambda - epsV);
+      split = false;
+    }
   } else {
     // d (nearly) parallel to the neighbours' plane: no torque-free split exists; share like the 3-simplex
     // constraint (linear momentum still conserved).
-    lambda << eps[0], eps[1], eps[2];
+    lambda = epsV;
   }
-  // The reduced mass m̄ = 1/(w + Σ ε̃i λi wi) must not exceed the plain one: a denominator below w (negative
-  // λ-weighted reactions) or extreme λ makes the linearised step overshoot, and repeated projection diverges.
+  // The reduced mass m̄ = 1/(w + Σ ε̃i λi wi) must stay near the plain one 1/(w + Σ ε̃i² wi): a denominator below
+  // w + ½ Σ ε̃i² wi (negative λ-weighted reactions, terms cancelling when the wi differ by orders of magnitude) or
+  // extreme λ makes the linearised step overshoot, and repeated projection diverges.
+  const double plain = eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
   denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
-  if (!(denom >= w) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
+  if (!(denom >= w + 0.5 * plain) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
     lambda << eps[0], eps[1], eps[2];
     denom = w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
     if (!(denom > 0)) return false;
