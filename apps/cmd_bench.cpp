@@ -245,7 +245,10 @@ int benchScene(const std::vector<std::string>& argv) {
     std::printf(" %s %.2f", pairName(scene, k, "|").c_str(), res.pairPenetrationMm[k]);
     deepest = std::max(deepest, res.pairPenetrationMm[k]);
   }
-  std::printf("\n  deepest %.2f mm\n", deepest);
+  if (res.pairPenetrationMm.empty())
+    std::printf(" not measured (no collision response)\n");
+  else
+    std::printf("\n  deepest %.2f mm\n", deepest);
   std::fflush(stdout);
 
   if (!out.empty()) {
