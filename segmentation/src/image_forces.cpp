@@ -146,6 +146,15 @@ void parabolicPeak(double ym, double y0, double yp, double& shift, double& value
   value = y0 - 0.25 * (ym - yp) * shift;
 }
 
+/// Whether the search line leaves the image: a candidate position at either end (±`reachMm` along the normal) has no
+/// value (the image is a box, so the ends decide). Such a line gets no target: the true edge may lie beyond the image
+/// (a scan or crop that cuts the object), and an edge found on the part inside would pull the surface to the wrong
+/// place (real CT femur cut by the field of view, gradient force: Dice 0.865 → 0.874 alone, 0.877 → 0.889 with the hip
+/// bone as collision partner). Samples a profile window or a central difference needs beyond the ends do not count.
+bool leavesImage(const LineSampler& sampler, double reachMm) {
+  return !std::isfinite(sampler.at(-reachMm)) || !std::isfinite(sampler.at(reachMm));
+}
+
 /// One vertex's search outcome.
 struct VertexTarget {
   double offsetMm = 0;  ///< along the normal
@@ -232,6 +241,7 @@ VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r,
   const int half = r.halfSearch, n = 2 * half + 1;
   // One extra sample each side so the central difference exists over the whole ±range.
   buf.line.resize(static_cast<size_t>(n + 2));
+  if (leavesImage(sampler, half * r.stepMm)) return {};
   for (int i = 0; i < n + 2; ++i) buf.line[i] = sampler.at((i - half - 1) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
   const double scale = sign / (2 * r.stepMm);
@@ -260,6 +270,7 @@ VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, 
   if (!(profileNorm > 0)) return {};
   const int lineLen = n + len - 1;  // samples at (j − half − profileHalf)·step
   buf.line.resize(static_cast<size_t>(lineLen));
+  if (leavesImage(sampler, half * r.stepMm)) return {};
   for (int j = 0; j < lineLen; ++j) buf.line[j] = sampler.at((j - half - profileHalf) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
   bool any = false;

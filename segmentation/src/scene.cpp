@@ -6,6 +6,8 @@
 #include <map>
 #include <set>
 
+#include <Eigen/LU>
+
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/surface_proximity.h"
@@ -17,7 +19,8 @@ namespace msk {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"objects", "collisions", "phantom", "description"};
-const std::vector<std::string> kObjectKeys = {"name", "label", "kind", "template", "polarity", "force", "model"};
+const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "template", "polarity",
+                                              "force", "model", "profiles_from"};
 const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
                                              "image_force",     "medial_axis",        "radial_stiffness",
                                              "axis_spacing_mm", "volumetric",         "volume_stiffness"};
@@ -174,6 +177,52 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   return m;
 }
 
+/// The object's optional "profiles_from" entry: {"mirror_x": c} or {"matrix": [[a, b, c, d] × 4]} (exactly one),
+/// as the affine map from template coordinates to where the profiles are learned. Only with the profile force.
+std::optional<Eigen::Matrix4d> parseProfileSource(const Checker& check, const Json& o, const std::string& where,
+                                                  const SceneObject& obj) {
+  const Json* v = o.find("profiles_from");
+  if (!v) return std::nullopt;
+  const std::string at = where + " profiles_from";
+  if (!v->isObject())
+    check.fail(at, std::string("expected {\"mirror_x\": x_mm} or {\"matrix\": 4x4}, found ") + v->typeName() + " " +
+                       shown(*v));
+  check.knownKeys(*v, {"mirror_x", "matrix"}, at, "key");
+  const Json* mirror = v->find("mirror_x");
+  const Json* matrix = v->find("matrix");
+  if (!mirror == !matrix) check.fail(at, "give exactly one of \"mirror_x\" and \"matrix\"");
+  Eigen::Matrix4d p = Eigen::Matrix4d::Identity();
+  if (mirror) {
+    // x' = 2c − x: the reflection about the plane x = c (RAS mm).
+    if (!mirror->isNumber() || !std::isfinite(mirror->asNumber()))
+      check.fail(at, "\"mirror_x\" must be a finite number (mm), found " + shown(*mirror));
+    p(0, 0) = -1;
+    p(0, 3) = 2 * mirror->asNumber();
+  } else {
+    const char* shape = "\"matrix\" must be 4 rows of 4 finite numbers with last row 0 0 0 1, found ";
+    if (!matrix->isArray() || matrix->size() != 4) check.fail(at, shape + shown(*matrix));
+    for (int r = 0; r < 4; ++r) {
+      const Json& row = matrix->asArray()[static_cast<size_t>(r)];
+      if (!row.isArray() || row.size() != 4) check.fail(at, shape + shown(row));
+      for (int c = 0; c < 4; ++c) {
+        const Json& x = row.asArray()[static_cast<size_t>(c)];
+        if (!x.isNumber() || !std::isfinite(x.asNumber())) check.fail(at, shape + shown(row));
+        p(r, c) = x.asNumber();
+      }
+    }
+    if (p.row(3) != Eigen::RowVector4d(0, 0, 0, 1)) check.fail(at, shape + shown(matrix->asArray()[3]));
+    // Invertible, relative to the matrix's scale (|det A| against the product of its row lengths).
+    const Eigen::Matrix3d a = p.topLeftCorner<3, 3>();
+    const double scale = a.row(0).norm() * a.row(1).norm() * a.row(2).norm();
+    if (!(std::abs(a.determinant()) > 1e-9 * scale))
+      check.fail(at, "\"matrix\" is singular (its 3x3 part has no inverse)");
+  }
+  if (obj.model.imageForce != TargetMode::Profile)
+    check.fail(where, "\"profiles_from\" is given but the image force is gradient (profiles are learned only by the "
+                      "profile force: set \"force\": \"profile\")");
+  return p;
+}
+
 /// The optional pair parameters of a collision entry (object form) into `p`.
 void parsePairParameters(const Checker& check, const Json& e, const std::string& where, CollisionPair& p) {
   check.number(e, "gap_mm", Checker::Range::NonNegative, where, &p.gapMm);
@@ -286,6 +335,7 @@ Scene parseScene(const Json& json, const std::string& path) {
       obj.polarity = p == 0 ? Polarity::Auto : p == 1 ? Polarity::DarkInside : Polarity::BrightInside;
     }
     obj.model = parseModel(check, o, where, obj);
+    obj.profileSource = parseProfileSource(check, o, where, obj);
     scene.objects.push_back(std::move(obj));
   }
 
@@ -386,6 +436,20 @@ Scene parseScene(const Json& json, const std::string& path) {
     }
   }
   return scene;
+}
+
+void toProfileSource(const SceneObject& obj, Points& positions, Points& normals) {
+  if (!obj.profileSource) return;
+  const Eigen::Matrix3d a = obj.profileSource->topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = obj.profileSource->topRightCorner<3, 1>();
+  positions = (positions * a.transpose()).rowwise() + t.transpose();
+  // Rows are nᵀ, so (A⁻ᵀn)ᵀ = nᵀA⁻¹. A⁻ᵀ maps the outward normal of the surface to the outward normal of its image
+  // under any invertible A, mirrors included (the inside maps to the inside).
+  normals = normals * a.inverse();
+  for (Eigen::Index v = 0; v < normals.rows(); ++v) {
+    const double len = normals.row(v).norm();
+    if (len > 0) normals.row(v) /= len;
+  }
 }
 
 Scene loadScene(const std::string& path) { return parseScene(Json::readFile(path), path); }

@@ -248,8 +248,12 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     start.vertices += transfer.apply(disp);
     st.current = simplexFromTriangles(start);
   }
-  if (st.search.mode == TargetMode::Profile)
-    st.profiles = learnProfiles(feat, ref.simplex.positions, simplexVertexNormals(ref.simplex), st.search, grid);
+  if (st.search.mode == TargetMode::Profile) {
+    // Learned where the template came from (e.g. the mirrored contralateral structure) when the scene says so.
+    Points positions = ref.simplex.positions, normals = simplexVertexNormals(ref.simplex);
+    toProfileSource(*st.obj, positions, normals);
+    st.profiles = learnProfiles(feat, positions, normals, st.search, grid);
+  }
   // Only what the object's model asks for is built.
   const ObjectModel& model = st.obj->model;
   st.internal.reset();

@@ -290,6 +290,57 @@ TEST(ImageForcesRobustness, VerticesOutsideTheImageGetNoForce) {
   }
 }
 
+TEST(ImageForcesRobustness, SearchLinesLeavingTheImageGetNoTarget) {
+  // The ball's image cut to ±26 mm: lines from r = 22 mm reaching 12 mm outward leave the image near the faces of the
+  // cube and stay inside toward its corners. A line that leaves gets no target (the edge found on its inner part
+  // could be a different edge than the one beyond the image); a line inside finds the ball.
+  const ImageF image = makeImage({1.2, 1.2, 3.0}, {10, -5, 20}, 26,
+                                 [](const Eigen::Vector3d& p) { return (p - kCenter).norm() < kRadius ? 200.0 : 800.0; });
+  const ImageFeatures f = computeImageFeatures(image, 1.0);
+  const Sphere truth = makeSphere(kRadius, 3), start = makeSphere(22.0, 3);
+  const Grid& g = image.grid;
+  // Distance (voxels) by which a point lies inside the voxel-centre box (negative: outside).
+  auto depth = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d v = g.toVoxel(p);
+    double d = std::numeric_limits<double>::infinity();
+    for (int a = 0; a < 3; ++a) d = std::min({d, v[a], g.dims[a] - 1 - v[a]});
+    return d;
+  };
+  for (TargetMode mode : {TargetMode::Gradient, TargetMode::Profile}) {
+    SCOPED_TRACE(mode == TargetMode::Gradient ? "gradient" : "profile");
+    TargetSearchOptions opts;
+    opts.mode = mode;
+    opts.rangeMm = 12;
+    opts.stepMm = 0.3;
+    opts.profileHalfLengthMm = 3;
+    opts.regularisationRings = 0;
+    const LearnedProfiles lp = learnProfiles(f, truth.positions, truth.normals, opts, g);
+    const TargetSearchResult res =
+        searchTargets(f, start.positions, start.normals, start.neighbors, opts, Polarity::DarkInside, g, &lp);
+    ASSERT_TRUE(allFinite(res));
+    // The line's candidate positions reach ±range (samples a window needs beyond them do not count).
+    const double reach = opts.rangeMm;
+    int leaving = 0, inside = 0;
+    for (int v = 0; v < start.positions.rows(); ++v) {
+      const Eigen::Vector3d p = start.positions.row(v).transpose(), n = start.normals.row(v).transpose().normalized();
+      const double outer = depth(p + reach * n), inner = depth(p - reach * n);
+      if (outer < -0.1) {  // the line leaves the image outward
+        ++leaving;
+        EXPECT_EQ(res.scores[v], 0.0) << "vertex " << v;
+        EXPECT_EQ(res.targets.row(v), start.positions.row(v)) << "vertex " << v;
+      } else if (outer > 0.1 && inner > 0.1) {
+        ++inside;
+        EXPECT_GT(res.scores[v], 0.0) << "vertex " << v;
+        EXPECT_LT(std::abs((res.targets.row(v).transpose() - kCenter).norm() - kRadius), 0.6) << "vertex " << v;
+      }
+    }
+    RecordProperty(std::string(mode == TargetMode::Gradient ? "gradient" : "profile") + "_leaving_inside",
+                   std::to_string(leaving) + "/" + std::to_string(inside));
+    EXPECT_GT(leaving, start.positions.rows() / 10);
+    EXPECT_GT(inside, start.positions.rows() / 10);
+  }
+}
+
 TEST(ImageForcesRobustness, ConstantImageGivesNoForce) {
   const ImageF image = makeImage({1.2, 1.2, 3.0}, {10, -5, 20}, 30, [](const Eigen::Vector3d&) { return 350.0; });
   const ImageFeatures f = computeImageFeatures(image, 1.0);

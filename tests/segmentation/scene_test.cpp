@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <functional>
 #include <set>
@@ -188,7 +190,7 @@ TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
       {R"({"objects": ["femur"]})", {"objects[0]", "expected an object, found string"}},
       // The example of scene.h: a misspelt key names the object and lists the known keys.
       {twoObjects(R"(, "lable": 3)"),
-       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model)"}},
+       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model, profiles_from)"}},
       {R"({"objects": [{"label": 1, "kind": "bone", "template": "a.vtk"}]})", {"objects[0]: missing key \"name\""}},
       {R"({"objects": [{"name": 5, "label": 1, "kind": "bone", "template": "a.vtk"}]})",
        {"objects[0]", "\"name\" must be a string, found number 5"}},
@@ -548,4 +550,85 @@ TEST(Scene, AutoPairsOnTheGeneratedPhantomAreItsDeclaredPairs) {
   std::sort(want.begin(), want.end());
   EXPECT_EQ(got, want);
   for (const auto& p : found.collisions) EXPECT_TRUE(p.fromAuto);
+}
+
+TEST(Scene, ProfilesFromMirrorAndMatrix) {
+  SceneFiles f;
+  // Unset: no transform.
+  EXPECT_FALSE(msk::loadScene(f.scene(twoObjects(R"(, "force": "profile")"))).objects[0].profileSource);
+  // The mirror about x = 12.5 mm: x' = 25 − x.
+  const msk::Scene m = msk::loadScene(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": 12.5})")));
+  ASSERT_TRUE(m.objects[0].profileSource);
+  Eigen::Matrix4d want = Eigen::Matrix4d::Identity();
+  want(0, 0) = -1;
+  want(0, 3) = 25;
+  EXPECT_EQ(*m.objects[0].profileSource, want);
+  EXPECT_FALSE(m.objects[1].profileSource);
+  // A general affine map, row by row; "model": {"image_force": "profile"} is the same as "force".
+  const msk::Scene a = msk::loadScene(f.scene(twoObjects(
+      R"(, "model": {"image_force": "profile"},
+          "profiles_from": {"matrix": [[0, -1, 0, 5], [2, 0, 0, -3], [0, 0, 1, 0.5], [0, 0, 0, 1]]})")));
+  ASSERT_TRUE(a.objects[0].profileSource);
+  want << 0, -1, 0, 5, 2, 0, 0, -3, 0, 0, 1, 0.5, 0, 0, 0, 1;
+  EXPECT_EQ(*a.objects[0].profileSource, want);
+}
+
+TEST(Scene, ProfilesFromErrorsNameTheObjectAndTheProblem) {
+  SceneFiles f;
+  expectSceneError(f.scene(twoObjects(R"(, "profiles_from": {"mirror_x": 1})")),
+                   {"objects[0] (femur)", "\"profiles_from\" is given but the image force is gradient"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": 3)")),
+                   {"objects[0] (femur) profiles_from", "expected {\"mirror_x\""});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror": 3})")),
+                   {"profiles_from", "unknown key \"mirror\""});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {})")), {"exactly one of"});
+  expectSceneError(
+      f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": 1, "matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})")),
+      {"exactly one of"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": "left"})")),
+                   {"\"mirror_x\" must be a finite number"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]})")),
+                   {"4 rows of 4"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0],[0,0,1,0],[0,0,0,1]]})")),
+                   {"4 rows of 4"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,1,1]]})")),
+                   {"last row 0 0 0 1"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[1,1,0,0],[0,0,0,1]]})")),
+                   {"singular"});
+}
+
+TEST(Scene, ToProfileSourceMirrorsPointsAndKeepsNormalsOutward) {
+  msk::SceneObject obj;
+  const msk::TriangleMesh ball = msk::makeIcosphere(10, 2, Eigen::Vector3d(-40, 5, 3));
+  msk::Points positions = ball.vertices, normals = msk::vertexNormals(ball);
+  // Unset: unchanged.
+  msk::Points p = positions, n = normals;
+  msk::toProfileSource(obj, p, n);
+  EXPECT_EQ(p, positions);
+  EXPECT_EQ(n, normals);
+  // Mirrored about x = 0: the ball's centre goes to (40, 5, 3), every normal still points away from it.
+  Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
+  mirror(0, 0) = -1;
+  obj.profileSource = mirror;
+  msk::toProfileSource(obj, p, n);
+  const Eigen::RowVector3d centre(40, 5, 3);
+  for (Eigen::Index v = 0; v < p.rows(); ++v) {
+    EXPECT_NEAR(p(v, 0), -positions(v, 0), 1e-12);
+    EXPECT_NEAR(n.row(v).norm(), 1.0, 1e-12);
+    EXPECT_GT(n.row(v).dot((p.row(v) - centre).normalized()), 0.95);
+  }
+  // A shear: normals follow A⁻ᵀ (still perpendicular to the mapped surface's edges) and stay outward.
+  Eigen::Matrix4d shear = Eigen::Matrix4d::Identity();
+  shear(0, 1) = 0.8;
+  shear(2, 3) = 7;
+  obj.profileSource = shear;
+  p = positions;
+  n = normals;
+  msk::toProfileSource(obj, p, n);
+  const Eigen::Matrix3d a = shear.topLeftCorner<3, 3>();
+  for (Eigen::Index v = 0; v < p.rows(); ++v) {
+    const Eigen::Vector3d tangent = Eigen::Vector3d(normals.row(v)).unitOrthogonal();  // a tangent of the ball
+    EXPECT_NEAR(n.row(v).dot(a * tangent), 0.0, 1e-12);
+    EXPECT_GT(n.row(v).dot(a * Eigen::Vector3d(normals.row(v))), 0.0);
+  }
 }

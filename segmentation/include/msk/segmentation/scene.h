@@ -55,6 +55,13 @@ struct SceneObject {
   bool hasForce = false;
   TargetMode force = TargetMode::Gradient;  ///< valid if hasForce (also in model.imageForce)
   ObjectModel model;                        ///< defaultModel(kind) with the object's "model" keys applied
+  /// Where the profile force learns its intensity profiles (scene key "profiles_from"): a 4×4 affine map P from
+  /// template coordinates (RAS mm) to the place the template was taken from, e.g. the contralateral structure it was
+  /// mirrored from. Profiles are then learned at P·x with normals A⁻ᵀn (A = P's 3×3 part), normalised and kept
+  /// outward even when P mirrors. {"mirror_x": c} is the mirror about the plane x = c mm; {"matrix": [[4 numbers]
+  /// × 4]} any invertible affine map (last row 0 0 0 1). Unset: profiles are learned on the template itself. Only
+  /// allowed with the profile image force; the source must lie inside the image.
+  std::optional<Eigen::Matrix4d> profileSource;
 };
 
 /// How a collision correction is applied (Table 4.23 of the thesis seed).
@@ -85,6 +92,10 @@ struct Scene {
   std::vector<CollisionPair> collisions;          ///< declared pairs in file order, then auto pairs; no duplicates
   Json metadata;                                  ///< the optional "phantom"/"description" entries, kept as given
 };
+
+/// Maps template points and their outward normals to where `obj` learns its profiles (obj.profileSource; unchanged if
+/// unset): positions P·x, normals A⁻ᵀn normalised, which stay outward when P mirrors. Zero normals stay zero.
+void toProfileSource(const SceneObject& obj, Points& positions, Points& normals);
 
 /// Reads and validates a scene. Template paths are relative to the scene file. Unknown keys, wrong types, values out
 /// of range, missing keys, duplicate names or labels, unknown collision names, a pair declared twice, unreadable or
