@@ -41,6 +41,7 @@ int sampleCorners(const TriangleMesh& m, int k, int idx[3], double wts[3]) {
 struct ActiveSample {
   int sample = 0;
   Eigen::Vector3d outward = Eigen::Vector3d::Zero();  ///< B's outward direction at the sample's last contact
+  Eigen::Vector3d contact = Eigen::Vector3d::Zero();  ///< where that contact was, mm
 };
 
 /// One direction of one pair, A's samples against B's surface: each sample inside B or closer than the gap is moved
@@ -80,15 +81,23 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     Eigen::Vector3d normal;  // B's outward side at the contact
     bool inside = false;
     if (s.distance > 1e-12) {
-      inside = refresh ? winding->inside(q) : (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0;
+      // Between refreshes the side carries over from the last contact, unless the closest point has jumped (to the
+      // other side of a thin partner, say): then the winding number decides.
+      const bool carry = !refresh && (s.point - active[static_cast<size_t>(i)].contact).norm() < 0.5;
+      if (!carry && !winding) winding.emplace(B.vertices, B.faces);
+      inside = carry ? (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0 : winding->inside(q);
       normal = (inside ? -1.0 : 1.0) * (q - s.point) / s.distance;
     } else {
       normal = surface.pseudonormal(B.vertices, s);
       if (!(normal.norm() > 1e-12)) continue;
       normal.normalize();
     }
-    if (refresh) active.push_back({k, normal});
-    else active[static_cast<size_t>(i)].outward = normal;
+    if (refresh) {
+      active.push_back({k, normal, s.point});
+    } else {
+      active[static_cast<size_t>(i)].outward = normal;
+      active[static_cast<size_t>(i)].contact = s.point;
+    }
     if (!inside && s.distance >= gap) continue;
     out.anyInside = out.anyInside || inside;
     const double pcn = (s.point - q).dot(normal);
@@ -114,6 +123,8 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   if (surfaces.size() != inverseMass.size()) throw Error("separation: one inverse mass per surface is needed");
   if (opts.maxSweeps < 0 || opts.maxSweeps > 10000)
     throw ParameterError("separation sweeps", std::to_string(opts.maxSweeps), "must be 0..10000");
+  if (!(opts.maxReachMm >= opts.reachMm) || !std::isfinite(opts.maxReachMm))
+    throw ParameterError("separation reach", std::to_string(opts.maxReachMm), "the largest reach must be >= the reach");
   if (!(opts.toleranceMm > 0) || !std::isfinite(opts.toleranceMm))
     throw ParameterError("separation tolerance", std::to_string(opts.toleranceMm), "must be > 0 mm");
   for (double w : inverseMass)
@@ -134,6 +145,14 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   constexpr int kRefresh = 4;
   std::vector<std::vector<ActiveSample>> active(2 * pairs.size());
   std::vector<bool> far(pairs.size(), false);
+  // A pair already deeper inside each other than the reach gets a reach that covers its deepest vertex.
+  std::vector<double> reach(pairs.size(), opts.reachMm);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const TriangleMesh& A = *surfaces[static_cast<size_t>(pairs[k].a)];
+    const TriangleMesh& B = *surfaces[static_cast<size_t>(pairs[k].b)];
+    const double deepest = std::max(penetrationDepth(A, B, opts.maxReachMm), penetrationDepth(B, A, opts.maxReachMm));
+    reach[k] = std::min(opts.maxReachMm, std::max(opts.reachMm, deepest + pairs[k].gapMm + 0.5));
+  }
   int sinceRefresh = 0;
   bool settled = false;
   for (int sweep = 0; sweep < opts.maxSweeps; ++sweep) {
@@ -150,13 +169,13 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
       if (sweep == 0) {  // pairs whose boxes are farther apart than the reach are never tested
         const Eigen::Vector3d loA = A.vertices.colwise().minCoeff(), hiA = A.vertices.colwise().maxCoeff();
         const Eigen::Vector3d loB = B.vertices.colwise().minCoeff(), hiB = B.vertices.colwise().maxCoeff();
-        far[k] = ((loA.array() - opts.reachMm) > hiB.array()).any() || ((loB.array() - opts.reachMm) > hiA.array()).any();
+        far[k] = ((loA.array() - reach[k]) > hiB.array()).any() || ((loB.array() - reach[k]) > hiA.array()).any();
       }
       if (far[k]) continue;
       for (int d = 0; d < 2; ++d) {
         std::vector<ActiveSample>& act = active[2 * k + static_cast<size_t>(d)];
-        const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, opts.reachMm, refresh, act)
-                                    : separateOnce(B, A, wB, wA, p.gapMm, opts.reachMm, refresh, act);
+        const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
+                                    : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
         applied += r.applied;
         largest = std::max(largest, r.largestMm);
         anyInside = anyInside || r.anyInside;

@@ -12,8 +12,9 @@ namespace msk {
 /// Settings of separateSurfaces() (user input).
 struct SeparationOptions {
   double reachMm = 3.0;  ///< how far from a partner's surface vertices are examined (> gap), mm
+  double maxReachMm = 10.0;  ///< a pair found deeper inside each other gets a reach covering its deepest vertex, up to this
   int maxSweeps = 32;    ///< sweeps over every pair and direction
-  double toleranceMm = 0.01;  ///< stop after a sweep that found nothing inside and corrected nothing by more, mm
+  double toleranceMm = 0.05;  ///< stop after a sweep that found nothing inside and corrected nothing by more, mm
 };
 
 /// One declared pair of surfaces (indices into the surfaces given) and the clearance kept between them.
