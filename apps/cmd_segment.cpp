@@ -2,6 +2,8 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <string>
+#include <tuple>
 
 #include "args.h"
 #include "commands.h"
@@ -25,7 +27,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
              "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space",
-             "collision-gap", "collision-proximity", "friction", "separation-sweeps"},
+             "collision-gap", "collision-proximity", "friction", "separation-sweeps", "scheme", "substeps",
+             "iterations", "threads"},
             {"help", "no-qc", "no-collisions"});
   if (args.has("help")) {
     std::cout
@@ -40,8 +43,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
            "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
-           "  --quality   preset (default balanced): fast = 2 levels x 25 steps, balanced = 2 x 50,\n"
-           "              accurate = 3 x 100; --levels/--steps/--tolerance override it\n"
+           "  --quality   preset (default balanced): fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2\n"
+           "              substeps x 2 iterations; balanced = 2 x 50, 0.02, Gauss-Seidel 1 x 1; accurate = 3 x 200,\n"
+           "              0.004, XPBD 2 x 2 (fast is ~10x quicker than accurate; see mskseg bench tradeoff)\n"
+           "              --levels/--steps/--tolerance/--scheme/--substeps/--iterations override it\n"
+           "  --scheme NAME   gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit\n"
+           "                  (default: the preset's; another scheme comes with the substeps x iterations\n"
+           "                  it needs: jacobi 1x2, xpbd 2x2 (k = 4, mass-relative), explicit 4x1, others 1x1)\n"
+           "  --substeps N, --iterations N   substeps per step and projection sweeps per substep (1..1000)\n"
+           "  --threads N     threads of the coloured, Jacobi and CG schemes (0 = all cores, default 1);\n"
+           "                  results do not depend on it\n"
            "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 1, 0.25)\n"
            "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.1)\n"
            "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
@@ -63,6 +74,15 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (steps < 0 || steps > 100000) throw ParameterError("--steps", std::to_string(steps), "must be 1..100000");
   opts.levels = static_cast<int>(levels);
   opts.maxStepsPerLevel = static_cast<int>(steps);
+  if (args.has("scheme")) opts.scheme = parseScheme(args.str("scheme"));
+  for (auto [name, field, lo] : {std::tuple{"substeps", &opts.substeps, 1L}, std::tuple{"iterations", &opts.iterations, 1L},
+                                 std::tuple{"threads", &opts.threads, 0L}}) {
+    if (!args.has(name)) continue;
+    const long v = args.integer(name, 0);
+    if (v < lo || v > 1000)
+      throw ParameterError(std::string("--") + name, args.str(name), "must be " + std::to_string(lo) + "..1000");
+    *field = static_cast<int>(v);
+  }
   opts.toleranceMm = args.num("tolerance", 0);
   if (opts.toleranceMm < 0) throw ParameterError("--tolerance", args.str("tolerance"), "must be ≥ 0 mm");
   opts.internalStiffness = args.num("internal-stiffness", opts.internalStiffness);

@@ -107,16 +107,40 @@ const char* polarityName(Polarity p) {
 ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   ResolvedSettings s;
   const double minSp = grid.spacing.minCoeff(), maxSp = grid.spacing.maxCoeff();
-  int levels = 2, steps = 40;
+  // The presets (measured with `mskseg bench tradeoff`, see README): levels, step cap per level, tolerance in units
+  // of the smallest spacing, scheme, substeps × iterations.
+  int levels = 2, steps = 50, substeps = 1, iterations = 1;
   double tolFactor = 0.02;
+  Scheme scheme = Scheme::GaussSeidel;
   switch (o.quality) {
-    case Quality::Fast: levels = 2; steps = 25; tolFactor = 0.04; break;
-    case Quality::Balanced: levels = 2; steps = 50; tolFactor = 0.02; break;
-    case Quality::Accurate: levels = 3; steps = 100; tolFactor = 0.01; break;
+    case Quality::Fast:  // one level: no coarse search, one image scale (capture range ± 1.5 voxels only)
+      levels = 1; steps = 15; tolFactor = 0.04; scheme = Scheme::Xpbd; substeps = 2; iterations = 2;
+      break;
+    case Quality::Balanced:
+      levels = 2; steps = 50; tolFactor = 0.02; scheme = Scheme::GaussSeidel; substeps = 1; iterations = 1;
+      break;
+    case Quality::Accurate:  // run to a tight tolerance: about 10× the time of fast for the least surface distance
+      levels = 3; steps = 200; tolFactor = 0.004; scheme = Scheme::Xpbd; substeps = 2; iterations = 2;
+      break;
   }
   s.levels = o.levels > 0 ? o.levels : levels;
   s.maxStepsPerLevel = o.maxStepsPerLevel > 0 ? o.maxStepsPerLevel : steps;
   s.toleranceMm = o.toleranceMm > 0 ? o.toleranceMm : tolFactor * minSp;
+  if (o.scheme && *o.scheme != scheme) {
+    // Another scheme than the preset's: the substeps × iterations it needs on the same schedule (measured on the
+    // femur phantoms: explicit Euler needs ≥ 4 substeps, Jacobi two sweeps to keep pace with Gauss–Seidel).
+    scheme = *o.scheme;
+    substeps = scheme == Scheme::Xpbd ? 2 : scheme == Scheme::Explicit ? 4 : 1;
+    iterations = scheme == Scheme::Xpbd || scheme == Scheme::Jacobi ? 2 : 1;
+  }
+  s.solver = SolverOptions::fromPbd(o.pbd);
+  s.solver.scheme = scheme;
+  s.solver.substeps = o.substeps > 0 ? o.substeps : substeps;
+  s.solver.iterations = o.iterations > 0 ? o.iterations : o.pbd.iterations != 1 ? o.pbd.iterations : iterations;
+  s.solver.threads = o.threads;
+  s.solver.stiffness = o.xpbdStiffness;
+  s.solver.xpbdStiffness = XpbdStiffness::MassRelative;
+  s.solver.omega = o.jacobiOmega;
   // Coarse levels see a smoother image over a longer range; the finest level a light blur over a short range.
   for (int l = 0; l < s.levels; ++l) {
     const double f = s.levels == 1 ? 0.0 : 1.0 - static_cast<double>(l) / (s.levels - 1);  // 1 coarse → 0 fine
@@ -129,7 +153,23 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
 Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   Json j;
   j["quality"] = qualityName(o.quality);
-  j["scheme"] = "position-based (Gauss-Seidel)";
+  j["scheme"] = schemeName(s.solver.scheme);
+  j["substeps"] = s.solver.substeps;
+  j["iterations"] = s.solver.iterations;
+  j["threads"] = s.solver.threads;
+  if (s.solver.scheme == Scheme::Xpbd) {
+    j["xpbd_stiffness"] = s.solver.stiffness;
+    j["xpbd_stiffness_unit"] = "mass-relative";
+  }
+  if (s.solver.scheme == Scheme::Jacobi) j["jacobi_omega"] = s.solver.omega;
+  if (s.solver.scheme == Scheme::Explicit || s.solver.scheme == Scheme::Implicit) {
+    j["force_damping_ratio"] = s.solver.forceDamping;
+    j["anisotropy"] = s.solver.anisotropy;
+  }
+  if (s.solver.scheme == Scheme::Implicit) {
+    j["cg_iterations"] = s.solver.cgIterations;
+    j["cg_tolerance"] = s.solver.cgTolerance;
+  }
   j["levels"] = s.levels;
   j["max_steps_per_level"] = s.maxStepsPerLevel;
   j["tolerance_mm"] = s.toleranceMm;
@@ -162,7 +202,6 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["axis_centering"] = o.axisCentering;
   j["bone_mass_ratio"] = o.boneMassRatio;
   j["pbd_dt"] = o.pbd.dt;
-  j["pbd_iterations"] = o.pbd.iterations;
   j["pbd_damping"] = o.pbd.damping;
   j["pbd_drag"] = o.pbd.drag;
   return j;
@@ -339,7 +378,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     throw ParameterError("max steps", std::to_string(opts.maxStepsPerLevel), "must be 0..100000");
   if (!(opts.toleranceMm >= 0) || !std::isfinite(opts.toleranceMm))
     throw ParameterError("tolerance", std::to_string(opts.toleranceMm), "must be ≥ 0 mm");
-  PbdSolver validate(opts.pbd);  // throws on bad scheme settings
+  if (opts.threads < 0 || opts.threads > 1024) throw ParameterError("threads", std::to_string(opts.threads), "must be 0..1024");
+  validateSolverOptions(resolveSettings(opts, Grid{}).solver);  // throws on bad scheme settings
   for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine, 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
                              std::tuple{"range fine", opts.rangeFine, 20.0}, std::tuple{"range coarse", opts.rangeCoarse, 20.0},
                              std::tuple{"edge penalty", opts.edgePenalty, 10.0}})
@@ -447,7 +487,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       for (auto& kv : surfaces) kv.second->update(p);
     };
     for (auto& c : collide) sets.push_back(c.get());
-    PbdSolver solver(opts.pbd);
+    Solver solver(rs.solver);
     solver.prepare(x, invMass);
     LevelReport rep;
     rep.sigmaMm = rs.sigmaMm[order];

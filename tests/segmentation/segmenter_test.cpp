@@ -136,3 +136,82 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
   EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);
 }
+
+// The --quality presets map to the settings the README and `mskseg segment --help` document, and explicit scheme
+// settings override them (issue 5); bad scheme settings are refused.
+TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
+  msk::Grid g;
+  g.spacing = Eigen::Vector3d(1.0, 2.0, 4.0);  // tolerance is a share of the smallest spacing
+  struct Expected {
+    msk::Quality q;
+    int levels, steps;
+    double tolerance;
+    msk::Scheme scheme;
+    int substeps, iterations;
+  };
+  const Expected presets[] = {{msk::Quality::Fast, 1, 15, 0.04, msk::Scheme::Xpbd, 2, 2},
+                              {msk::Quality::Balanced, 2, 50, 0.02, msk::Scheme::GaussSeidel, 1, 1},
+                              {msk::Quality::Accurate, 3, 200, 0.004, msk::Scheme::Xpbd, 2, 2}};
+  for (const Expected& e : presets) {
+    msk::SegmentOptions o;
+    o.quality = e.q;
+    const msk::ResolvedSettings s = msk::resolveSettings(o, g);
+    EXPECT_EQ(s.levels, e.levels) << msk::qualityName(e.q);
+    EXPECT_EQ(s.maxStepsPerLevel, e.steps) << msk::qualityName(e.q);
+    EXPECT_DOUBLE_EQ(s.toleranceMm, e.tolerance) << msk::qualityName(e.q);
+    EXPECT_EQ(s.solver.scheme, e.scheme) << msk::qualityName(e.q);
+    EXPECT_EQ(s.solver.substeps, e.substeps) << msk::qualityName(e.q);
+    EXPECT_EQ(s.solver.iterations, e.iterations) << msk::qualityName(e.q);
+    EXPECT_EQ(s.sigmaMm.size(), static_cast<size_t>(e.levels));
+    const msk::Json j = msk::settingsJson(o, s);
+    EXPECT_EQ(j.at("scheme").asString(), msk::schemeName(e.scheme));
+    EXPECT_EQ(j.at("substeps").asInt(), e.substeps);
+    EXPECT_EQ(j.at("iterations").asInt(), e.iterations);
+    EXPECT_EQ(j.at("threads").asInt(), 1);
+  }
+  // XPBD in mass-relative units, k = 4.
+  msk::SegmentOptions o;
+  o.quality = msk::Quality::Accurate;
+  EXPECT_EQ(msk::resolveSettings(o, g).solver.xpbdStiffness, msk::XpbdStiffness::MassRelative);
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(o, g).solver.stiffness, 4.0);
+  // Explicit settings win over the preset.
+  o.scheme = msk::Scheme::Implicit;
+  o.substeps = 3;
+  o.iterations = 5;
+  o.threads = 2;
+  o.levels = 2;
+  const msk::ResolvedSettings s = msk::resolveSettings(o, g);
+  EXPECT_EQ(s.solver.scheme, msk::Scheme::Implicit);
+  EXPECT_EQ(s.solver.substeps, 3);
+  EXPECT_EQ(s.solver.iterations, 5);
+  EXPECT_EQ(s.solver.threads, 2);
+  EXPECT_EQ(s.levels, 2);
+  EXPECT_EQ(s.maxStepsPerLevel, 200);
+  // Another scheme than the preset's brings the substeps × iterations it needs.
+  msk::SegmentOptions other;
+  other.scheme = msk::Scheme::Explicit;
+  EXPECT_EQ(msk::resolveSettings(other, g).solver.substeps, 4);
+  other.scheme = msk::Scheme::Jacobi;
+  EXPECT_EQ(msk::resolveSettings(other, g).solver.iterations, 2);
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(other, g).solver.omega, 1.5);
+  // The old PbdOptions still count: iterations from pbd when not set, dt/damping/drag always.
+  msk::SegmentOptions legacy;
+  legacy.pbd.iterations = 3;
+  legacy.pbd.drag = 0.25;
+  EXPECT_EQ(msk::resolveSettings(legacy, g).solver.iterations, 3);
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(legacy, g).solver.drag, 0.25);
+  // Bad scheme settings are refused before any work.
+  const msk::Grid cube = cubeGrid(2.0, 10);
+  const msk::ImageF img(cube, 1.f);
+  const msk::Scene scene = oneObjectScene(msk::makeIcosphere(5, 2));
+  msk::SegmentOptions bad;
+  bad.threads = -1;
+  EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
+  bad = {};
+  bad.jacobiOmega = 2.5;
+  bad.scheme = msk::Scheme::Jacobi;
+  EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
+  bad = {};
+  bad.xpbdStiffness = -1;
+  EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
+}

@@ -2,6 +2,7 @@
 /// The segmentation pipeline: template surfaces of a scene evolve as 2-simplex meshes under image targets, shape
 /// memory and a global shape prior, coarse to fine (DESIGN-NOTES §6, §7).
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -9,12 +10,13 @@
 #include "msk/core/json.h"
 #include "msk/core/log.h"
 #include "msk/core/pbd_solver.h"
+#include "msk/core/solver.h"
 #include "msk/segmentation/image_forces.h"
 #include "msk/segmentation/scene.h"
 
 namespace msk {
 
-/// Speed/accuracy presets (the settings each maps to are in presetJson()).
+/// Speed/accuracy presets (resolveSettings() maps them: levels, steps, tolerance, scheme, substeps × iterations).
 enum class Quality { Fast, Balanced, Accurate };
 
 /// Parses "fast" | "balanced" | "accurate"; throws ParameterError otherwise.
@@ -56,7 +58,13 @@ struct SegmentOptions {
   double radialStiffness = 0.1;   ///< default γ of the radial constraints of objects with a medial axis, [0, 1]
   double axisSpacingMm = 8.0;     ///< default distance between medial-axis vertices, mm
   double axisCentering = 0.5;     ///< γ of the axis re-centring on its surface per step, [0, 1]
-  PbdOptions pbd;               ///< scheme settings
+  PbdOptions pbd;               ///< time step, damping and drag of every scheme (pbd.iterations ≠ 1: see `iterations`)
+  std::optional<Scheme> scheme; ///< evolution scheme (unset = preset)
+  int substeps = 0;             ///< substeps per step (0 = preset)
+  int iterations = 0;           ///< projection sweeps per substep (0 = pbd.iterations if ≠ 1, else preset)
+  int threads = 1;              ///< threads of the coloured, Jacobi and CG schemes (0 = all cores); results do not depend on it
+  double xpbdStiffness = 4.0;   ///< XPBD k, mass-relative (XpbdStiffness::MassRelative): k × the force stiffness γ m̄ dt⁻²
+  double jacobiOmega = 1.5;     ///< Jacobi relaxation ω ∈ (0, 2)
 };
 
 /// The settings a run actually used after the preset is applied (written into report.json).
@@ -65,6 +73,7 @@ struct ResolvedSettings {
   double toleranceMm = 0.02;
   std::vector<double> sigmaMm;   ///< image scale per level, coarse first
   std::vector<double> rangeMm;   ///< search range per level, coarse first
+  SolverOptions solver;          ///< the evolution scheme with all its settings (what Solver runs)
 };
 
 /// What one level of one object did.

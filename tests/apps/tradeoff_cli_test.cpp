@@ -1,0 +1,79 @@
+// End-to-end tests of `mskseg bench tradeoff` (issue 5): one-line usage errors with exit code 2, and a small run (one
+// phantom, two schemes and one preset) writing the CSV with its header and rows and a PNG that decodes.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "msk/segmentation/qc_pictures.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using msk::test::CliResult;
+using msk::test::expectOneLineError;
+using msk::test::runCli;
+using msk::test::ScratchDir;
+
+TEST(TradeoffCli, HelpAndBadArguments) {
+  const CliResult h = runCli({"bench", "tradeoff", "--help"});
+  ASSERT_EQ(h.exitCode, 0) << h.err;
+  EXPECT_NE(h.out.find("--phantoms"), std::string::npos) << h.out;
+  EXPECT_NE(runCli({"bench", "--help"}).out.find("tradeoff"), std::string::npos);
+  ScratchDir dir;
+  const std::string out = dir.file("t");
+  expectOneLineError(runCli({"bench", "tradeoff", "--out", out}), 2, "", "--phantoms");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "2"}), 2, "", "--out");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "0", "--out", out}), 2, "", "--phantoms");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "x", "--out", out}), 2, "", "phantoms");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "1", "--seed", "-1", "--out", out}), 2, "", "--seed");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "1", "--threads", "-2", "--out", out}), 2, "",
+                     "--threads");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "1", "--schemes", "magic", "--out", out}), 2, "",
+                     "magic");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "1", "--presets", "best", "--out", out}), 2, "",
+                     "best");
+  expectOneLineError(runCli({"bench", "tradeoff", "--phantoms", "1", "--bogus", "1", "--out", out}), 2, "", "bogus");
+  expectOneLineError(runCli({"bench", "tradeoff", "extra", "--phantoms", "1", "--out", out}), 2, "", "extra");
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(TradeoffCli, SmallRunWritesTheCsvAndAPlot) {
+  ScratchDir dir;
+  const std::string out = dir.file("trade");
+  const CliResult r = runCli({"bench", "tradeoff", "--phantoms", "1", "--seed", "2", "--schemes", "gauss-seidel,xpbd",
+                              "--presets", "fast", "--out", out, "--quiet"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  for (const char* word : {"gauss-seidel 1x1", "xpbd 2x2", "preset fast", "Dice", "ASSD", "check"})
+    EXPECT_NE(r.out.find(word), std::string::npos) << word << "\n" << r.out;
+  std::ifstream csv(out + "/tradeoff.csv");
+  ASSERT_TRUE(csv.good());
+  std::string line;
+  std::vector<std::string> lines;
+  while (std::getline(csv, line)) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 1u + 3u + 3u);  // header, one run per setting, one mean per setting
+  EXPECT_EQ(lines[0],
+            "phantom,seed,setting,scheme,preset,levels,max_steps_per_level,tolerance_mm,substeps,iterations,steps,"
+            "seconds,cpu_seconds,dice,assd_mm,peak_rss_mib,ok");
+  EXPECT_EQ(lines[1].rfind("2,2,gauss-seidel 1x1,gauss-seidel,balanced,2,50,", 0), 0u) << lines[1];
+  EXPECT_EQ(lines[2].rfind("2,2,xpbd 2x2,xpbd,balanced,2,50,", 0), 0u) << lines[2];
+  EXPECT_EQ(lines[3].rfind("2,2,preset fast,xpbd,fast,", 0), 0u) << lines[3];
+  for (size_t k = 1; k < lines.size(); ++k) {
+    EXPECT_EQ(lines[k].substr(lines[k].size() - 2), ",1") << lines[k];  // every run succeeded
+    std::vector<std::string> f;
+    size_t a = 0;
+    for (size_t b; (b = lines[k].find(',', a)) != std::string::npos; a = b + 1) f.push_back(lines[k].substr(a, b - a));
+    f.push_back(lines[k].substr(a));
+    ASSERT_EQ(f.size(), 17u) << lines[k];
+    EXPECT_GT(std::stod(f[11]), 0.0) << lines[k];  // seconds
+    EXPECT_GT(std::stod(f[12]), 0.0) << lines[k];  // CPU seconds
+    EXPECT_GT(std::stod(f[13]), 0.9) << lines[k];  // Dice: a plausible femur result
+    EXPECT_GT(std::stod(f[14]), 0.0) << lines[k];  // ASSD
+    EXPECT_GT(std::stod(f[15]), 0.0) << lines[k];  // peak RSS
+  }
+  EXPECT_EQ(lines[4].rfind("mean,,gauss-seidel 1x1,", 0), 0u) << lines[4];
+  const msk::RgbPicture pic = msk::readRgbPicture(out + "/tradeoff.png");
+  EXPECT_GE(pic.width, 600);
+  EXPECT_GE(pic.height, 400);
+}
