@@ -183,13 +183,14 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     }
     ++rep.sweeps;
     rep.corrections += applied;
-    // Done when a refresh sweep finds nothing inside a partner and only negligible corrections (within-gap
-    // adjustments between three or more touching surfaces can go on trading hundredths of a millimetre).
-    settled = !anyInside && largest < opts.toleranceMm;
-    if (settled && refresh) {
+    // Done when a refresh sweep finds nothing inside a partner. Between refreshes, a sweep that found nothing inside
+    // and corrected nothing by more than the tolerance calls the refresh early (within-gap adjustments between three
+    // or more touching surfaces can go on trading hundredths of a millimetre).
+    if (refresh && !anyInside) {
       rep.clean = true;
       break;
     }
+    settled = !anyInside && largest < opts.toleranceMm;
   }
   for (TriangleMesh* s : surfaces)
     if (!s->vertices.allFinite()) throw Error("separation: non-finite vertex position");

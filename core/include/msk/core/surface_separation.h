@@ -14,7 +14,7 @@ struct SeparationOptions {
   double reachMm = 3.0;  ///< how far from a partner's surface vertices are examined (> gap), mm
   double maxReachMm = 10.0;  ///< a pair found deeper inside each other gets a reach covering its deepest vertex, up to this
   int maxSweeps = 32;    ///< sweeps over every pair and direction
-  double toleranceMm = 0.05;  ///< stop after a sweep that found nothing inside and corrected nothing by more, mm
+  double toleranceMm = 0.05;  ///< a sweep that found nothing inside and corrected nothing by more calls the check, mm
 };
 
 /// One declared pair of surfaces (indices into the surfaces given) and the clearance kept between them.
@@ -27,11 +27,11 @@ struct SeparationPair {
 struct SeparationReport {
   int sweeps = 0;       ///< sweeps run
   long corrections = 0; ///< vertex corrections applied over all sweeps
-  bool clean = false;   ///< the last sweep found nothing inside and corrected nothing by more than the tolerance
+  bool clean = false;   ///< the last sweep (a full check) found no sample inside a partner
 };
 
-/// Moves the surfaces' vertices (in place) until no sample (vertex or face centroid) of either surface of a pair lies
-/// inside the other and the corrections have settled below the tolerance, or maxSweeps is reached. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
+/// Moves the surfaces' vertices (in place) until a full check (every sample, side from the winding number) finds no
+/// sample (vertex or face centroid) of either surface of a pair inside the other, or maxSweeps is reached. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
 /// surface (a bone) moves less. Throws ParameterError for bad options or pair indices, Error on size mismatches.
 SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
                                   const std::vector<SeparationPair>& pairs, const SeparationOptions& opts = {});

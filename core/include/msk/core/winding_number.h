@@ -15,11 +15,12 @@ double triangleWindingNumber(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
                              const Eigen::Vector3d& c);
 
 /// Winding number of a closed, outward-oriented triangle surface: ≈ 1 inside, ≈ 0 outside (2 where it covers a point
-/// twice). Triangles are grouped in cubic clusters; a cluster seen from farther than `farFactor` times its radius
-/// contributes its dipole Σ aᵢnᵢ·(c − q)/(4π|c − q|³), nearer ones triangle by triangle (exact).
+/// twice). Triangles are grouped in cubic clusters on two levels (groups of clusters four times larger); a group or
+/// cluster seen from farther than `farFactor` times its radius contributes its dipole Σ aᵢnᵢ·(c − q)/(4π|c − q|³),
+/// nearer clusters triangle by triangle (exact).
 class WindingNumber {
  public:
-  /// `clusterMm` ≤ 0: four times the mean edge length. farFactor ≥ 1 (2 keeps the error far below the ½ threshold
+  /// `clusterMm` ≤ 0: twice the mean edge length. farFactor ≥ 1 (2 keeps the error far below the ½ threshold
   /// for smooth organ surfaces).
   WindingNumber(const Points& vertices, const Triangles& faces, double clusterMm = 0, double farFactor = 2.0);
   /// The winding number at q (mm).
@@ -39,7 +40,8 @@ class WindingNumber {
   Points v_;
   Triangles f_;
   double far_;
-  std::vector<Cluster> clusters_;
+  std::vector<Cluster> clusters_;  ///< fine clusters, grouped: group g owns clusters_[groups_[g].begin, end)
+  std::vector<Cluster> groups_;    ///< coarse groups of clusters (begin/end index clusters_)
   std::vector<int> order_;
 };
 
