@@ -10,6 +10,7 @@
 #include "msk/core/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/imaging/tet_mesh_io.h"
 #include "msk/segmentation/qc_pictures.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
@@ -40,7 +41,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
            "its shape memory and a global shape prior; objects evolve together, and the scene's collision pairs\n"
            "keep their surfaces apart (vertex-surface contacts, position correction shared with reduced masses).\n"
-           "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras;\n"
+           "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object;\n"
            "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2\n"
@@ -148,6 +149,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
     report["timing"] = timing;
     report["overlap_voxels"] = static_cast<double>(res.overlapVoxels);
     report["collision_sets_built"] = res.collisionSetsBuilt;
+    report["medial_axes_built"] = res.medialAxesBuilt;
+    report["volume_models_built"] = res.volumeModelsBuilt;
     Json pairs = Json::array();
     for (size_t k = 0; k < scene.collisions.size(); ++k) {
       Json pj;
@@ -177,6 +180,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
       j["seconds"] = o.seconds;
       j["volume_mm3"] = o.volumeMm3;
       j["template_volume_mm3"] = o.templateVolumeMm3;
+      if (o.volumeMesh.tetCount() > 0) {
+        writeTetMesh(dir + "/" + o.name + ".vtu", o.volumeMesh, space);
+        Json vm;
+        vm["mesh"] = o.name + ".vtu";
+        vm["tets"] = o.volumeMesh.tetCount();
+        vm["volume_mm3"] = o.volumeModelMm3;
+        vm["template_volume_mm3"] = o.volumeModelTemplateMm3;
+        vm["volume_change_percent"] = 100.0 * (o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0);
+        j["volume_model"] = vm;
+      }
       j["mean_image_residual_mm"] = o.meanImageResidualMm;
       j["mean_displacement_mm"] = o.mesh.pointData.at("displacement_mm").mean();
       Json lv = Json::array();

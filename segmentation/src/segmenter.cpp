@@ -5,14 +5,17 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <optional>
 #include <tuple>
 
 #include "msk/core/error.h"
 #include "msk/core/medial_axis.h"
+#include "msk/core/volume_simplex.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/surface_separation.h"
 #include "msk/imaging/rasterize.h"
 #include "msk/imaging/surface_extraction.h"
+#include "msk/segmentation/tetrahedralize.h"
 
 namespace msk {
 
@@ -197,9 +200,11 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["collision_mode"] = "position, spring target, sequential";
   j["collision_final_sweeps"] = o.collisionFinalSweeps;
   j["separation_sweeps"] = o.separationSweeps;
+  j["collision_side_test_every"] = o.collisionSideTestEvery;
   j["radial_stiffness"] = o.radialStiffness;
   j["axis_spacing_mm"] = o.axisSpacingMm;
   j["axis_centering"] = o.axisCentering;
+  j["volume_stiffness"] = o.volumeStiffness;
   j["bone_mass_ratio"] = o.boneMassRatio;
   j["pbd_dt"] = o.pbd.dt;
   j["pbd_damping"] = o.pbd.damping;
@@ -232,12 +237,21 @@ struct ObjectState {
   int axisFirst = 0;               ///< first axis particle in the stacked system
   std::unique_ptr<RadialConstraints> radial;
   std::unique_ptr<AxisCentering> centering;
+  // 3-simplex volume model (objects whose model asks for one), at the finest level: its tet vertices are the particles
+  // right before the surface's, whose simplex vertices are the model's ghosts (the finest template is the boundary of
+  // the tetrahedralised template), so the surface and the volume share those particles.
+  std::optional<VolumeSimplexMesh> volume;
+  std::unique_ptr<VolumeSimplexConstraints> volumeSet;
+  int volFirst = 0;        ///< first tet particle in the stacked system
+  Points volStart, volFinal;  ///< tet particles at the start and the end of the finest level
+  /// Tet particles at level l (0 unless the object is volumetric and l is the finest level).
+  int tetCount(int l) const { return volume && l == 0 ? volume->tetCount() : 0; }
   /// The constraint sets of this object at the current level, in projection order (image, internal, prior, radial).
   std::vector<ConstraintSet*> sets() const {
     std::vector<ConstraintSet*> out;
     for (ConstraintSet* c : {static_cast<ConstraintSet*>(targets.get()), static_cast<ConstraintSet*>(internal.get()),
                              static_cast<ConstraintSet*>(prior.get()), static_cast<ConstraintSet*>(radial.get()),
-                             static_cast<ConstraintSet*>(centering.get())})
+                             static_cast<ConstraintSet*>(centering.get()), static_cast<ConstraintSet*>(volumeSet.get())})
       if (c) out.push_back(c);
     return out;
   }
@@ -256,12 +270,31 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
   st.lv.resize(static_cast<size_t>(rs.levels));
   st.lv[0].triangles = obj.templ;
+  TetMesh tets;
+  if (obj.model.volumetric) {
+    // Tetrahedra about as large as the template's triangles; the finest surface becomes the tet mesh's boundary.
+    const double edge = meanEdgeLength(obj.templ);
+    TetOptions to;
+    to.facetSizeMm = edge;
+    to.cellSizeMm = 1.5 * edge;
+    to.facetDistanceMm = 0.1 * edge;
+    tets = tetrahedralize(obj.templ, to);
+    st.volume = volumeSimplexFromTets(tets);
+    st.lv[0].triangles = tetBoundary(tets);
+  }
   for (int l = 1; l < rs.levels; ++l) {
     const int target = std::max(150, st.lv[l - 1].triangles.vertexCount() / 4);
     st.lv[l].triangles = target < st.lv[l - 1].triangles.vertexCount() ? decimateMesh(st.lv[l - 1].triangles, target)
                                                                        : st.lv[l - 1].triangles;
   }
   for (auto& l : st.lv) l.simplex = simplexFromTriangles(l.triangles);
+  if (st.volume) {
+    // The surface's simplex vertices must be the model's ghosts, in the same order and place.
+    const Points& ghosts = st.volume->boundary.positions;
+    if (ghosts.rows() != st.lv[0].simplex.vertexCount() ||
+        (ghosts - st.lv[0].simplex.positions).cwiseAbs().maxCoeff() > 1e-6 * (1.0 + ghosts.cwiseAbs().maxCoeff()))
+      throw Error(obj.name + ": the volume model's boundary does not match its surface model");
+  }
   st.search.mode = obj.hasForce ? obj.force : obj.model.imageForce;
   st.search.distancePenalty = opts.edgePenalty;
   // Polarity: the object's setting, else estimated once on the coarsest scale at the template position.
@@ -319,7 +352,19 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     st.axisStart = ((st.axis.curve.positions * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
                     fit.topRightCorner<3, 1>().transpose());
   }
+  st.volumeSet.reset();
+  if (st.volume && l == 0) {
+    // Tet vertices start where the best affine fit of the template surface onto the current one puts them.
+    const int nt = st.volume->tetCount();
+    const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
+                                             Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
+    st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
+                  fit.topRightCorner<3, 1>().transpose();
+    const double gamma = model.volumeStiffness >= 0 ? model.volumeStiffness : opts.volumeStiffness;
+    st.volumeSet = std::make_unique<VolumeSimplexConstraints>(*st.volume, gamma, VolumeBoundary::SurfaceDriven);
+  }
   for (ConstraintSet* c : st.sets()) c->setFirstParticle(st.first);
+  if (st.volumeSet) st.volumeSet->setFirstParticle(st.volFirst);  // tets first, then the ghosts = the surface
 }
 
 /// Builds the radial constraints and the axis re-centring of an object with a medial axis, once its axis particles
@@ -341,7 +386,15 @@ void finishObject(ObjectState& st) {
                                                   : Eigen::VectorXd::Zero(st.current.vertexCount());
   ObjectResult& out = st.out;
   out.mesh = trianglesFromSimplex(st.current);
-  out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - st.obj->templ.vertices).rowwise().norm();
+  out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - st.lv[0].triangles.vertices).rowwise().norm();
+  if (st.volume) {
+    Points all(st.volume->vertexCount(), 3);
+    all.topRows(st.volume->tetCount()) = st.volFinal;
+    all.bottomRows(st.volume->ghostCount()) = st.current.positions;
+    out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all);
+    out.volumeModelMm3 = totalVolume(out.volumeMesh);
+    out.volumeModelTemplateMm3 = volumeSimplexVolume(*st.volume, st.volume->simplex.positions);
+  }
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);
   out.secondsPerFamily["image-search"] += st.searchSeconds;
@@ -360,6 +413,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   checkUnitInterval("global prior end", opts.priorEnd);
   checkUnitInterval("collision friction", opts.collisionFriction);
   checkUnitInterval("radial stiffness", opts.radialStiffness);
+  checkUnitInterval("volume stiffness", opts.volumeStiffness);
   checkUnitInterval("axis centring", opts.axisCentering);
   if (!(opts.axisSpacingMm >= 0.5 && opts.axisSpacingMm <= 100))
     throw ParameterError("axis spacing", std::to_string(opts.axisSpacingMm), "must be in [0.5, 100] mm");
@@ -371,6 +425,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     throw ParameterError("bone mass ratio", std::to_string(opts.boneMassRatio), "must be in [0.001, 1000]");
   if (opts.collisionFinalSweeps < 0 || opts.collisionFinalSweeps > 1000)
     throw ParameterError("collision sweeps", std::to_string(opts.collisionFinalSweeps), "must be 0..1000");
+  if (opts.collisionSideTestEvery < 0 || opts.collisionSideTestEvery > 100000)
+    throw ParameterError("collision side test interval", std::to_string(opts.collisionSideTestEvery), "must be 0..100000");
   if (opts.separationSweeps < 0 || opts.separationSweeps > 1000)
     throw ParameterError("separation sweeps", std::to_string(opts.separationSweeps), "must be 0..1000");
   if (opts.levels < 0 || opts.levels > 5) throw ParameterError("levels", std::to_string(opts.levels), "must be 0..5");
@@ -426,6 +482,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
     int n = 0;
     for (auto& st : objs) {
+      st.volFirst = n;  // a volume model's tet particles come right before its surface's
+      n += st.tetCount(l);
       st.first = n;
       st.search.rangeMm = rs.rangeMm[order];
       enterLevel(st, l, coarsest, opts, feat, image.grid);
@@ -439,10 +497,13 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         buildAxisSets(st, opts);
         if (l == coarsest) ++res.medialAxesBuilt;
       }
+    if (l == coarsest)
+      for (const auto& st : objs) res.volumeModelsBuilt += st.volume ? 1 : 0;
     Points x(n, 3);
     for (const auto& st : objs) {
       x.middleRows(st.first, st.current.vertexCount()) = st.current.positions;
       if (st.hasAxis()) x.middleRows(st.axisFirst, st.axisCount()) = st.axisStart;
+      if (st.volumeSet) x.middleRows(st.volFirst, st.tetCount(l)) = st.volStart;
     }
     std::vector<ConstraintSet*> sets;
     for (auto& st : objs)
@@ -451,7 +512,10 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     // image targets and shape memory do not depend on a uniform mass scale). An axis carries the mass of its surface.
     Eigen::VectorXd invMass = Eigen::VectorXd::Ones(n);
     for (const auto& st : objs) {
-      if (st.obj->kind == ObjectKind::Bone) invMass.segment(st.first, st.current.vertexCount()).setConstant(1.0 / opts.boneMassRatio);
+      if (st.obj->kind == ObjectKind::Bone) {
+        invMass.segment(st.first, st.current.vertexCount()).setConstant(1.0 / opts.boneMassRatio);
+        invMass.segment(st.volFirst, st.tetCount(l)).setConstant(1.0 / opts.boneMassRatio);
+      }
       if (st.hasAxis())
         invMass.segment(st.axisFirst, st.axisCount()) =
             axisInverseMass(st.attachment, st.axisCount(), invMass.segment(st.first, st.current.vertexCount()));
@@ -512,7 +576,10 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       {
         const auto tc = Clock::now();
         updateSurfaces(solver.positions());
-        for (auto& c : collide) c->detect(solver.positions(), s == 0);
+        // The side test (winding number) on the first step of a level and every few steps after it, so that a vertex
+        // that got through a partner is found and pushed back out the right way.
+        const bool sideTest = s == 0 || (opts.collisionSideTestEvery > 0 && s % opts.collisionSideTestEvery == 0);
+        for (auto& c : collide) c->detect(solver.positions(), sideTest);
         collisionDetectSeconds += since(tc);
       }
       rep.lastMaxMoveMm = solver.step(sets);
@@ -544,6 +611,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     }
     for (auto& st : objs) {
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
+      if (st.volumeSet) st.volFinal = solver.positions().middleRows(st.volFirst, st.tetCount(l));
       // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
       const Points& refP = st.lv[static_cast<size_t>(l)].simplex.positions;
       const double refDiag = (refP.colwise().maxCoeff() - refP.colwise().minCoeff()).norm();
@@ -586,7 +654,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.separationCorrections = sep.corrections;
     for (size_t i = 0; i < res.objects.size(); ++i) {
       ObjectResult& o = res.objects[i];
-      o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - scene.objects[i].templ.vertices).rowwise().norm();
+      o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - objs[i].lv[0].triangles.vertices).rowwise().norm();
       o.volumeMm3 = enclosedVolume(o.mesh);
     }
     for (const SeparationPair& p : pairs)

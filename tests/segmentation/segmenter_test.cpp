@@ -215,3 +215,36 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
   bad.xpbdStiffness = -1;
   EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
 }
+
+// A volumetric object (3-simplex model coupled to the surface: the surface's simplex vertices are the model's ghosts)
+// keeps its volume within 2 % while the image moves it 3 mm into place, and is built only when its model asks.
+TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
+  const msk::Grid g = cubeGrid(1.0, 30);
+  const Eigen::Vector3d axes(20, 14, 11);
+  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  msk::TriangleMesh templ = msk::makeIcosphere(1.0, 3);
+  for (int i = 0; i < templ.vertexCount(); ++i)
+    templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose()) + Eigen::RowVector3d(3, -2, 1);
+  msk::Scene scene = oneObjectScene(templ, msk::ObjectKind::Muscle);
+  msk::SegmentOptions opts;
+  const msk::SegmentationResult plain = msk::segmentScene(img, scene, opts);
+  EXPECT_EQ(plain.volumeModelsBuilt, 0);
+  EXPECT_EQ(plain.objects[0].volumeMesh.tetCount(), 0);
+  scene.objects[0].model.volumetric = true;
+  const msk::SegmentationResult res = msk::segmentScene(img, scene, opts);
+  ASSERT_EQ(res.volumeModelsBuilt, 1);
+  const msk::ObjectResult& o = res.objects[0];
+  ASSERT_GT(o.volumeMesh.tetCount(), 100);
+  EXPECT_EQ(msk::tetMeshProblem(o.volumeMesh), "");
+  const double change = o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0;
+  // The surface reached the ellipsoid (which has the template's volume), as without the volume model.
+  const Eigen::Vector3d centre = o.mesh.vertices.colwise().mean();
+  std::printf("volume model: %d tets, volume %.0f mm3 vs template %.0f (%+.2f %%), surface centre (%.2f %.2f %.2f), "
+              "volume inside the surface %.0f mm3\n",
+              o.volumeMesh.tetCount(), o.volumeModelMm3, o.volumeModelTemplateMm3, 100 * change, centre.x(), centre.y(),
+              centre.z(), o.volumeMm3);
+  EXPECT_LT(std::abs(change), 0.02);
+  EXPECT_LT(centre.norm(), 0.5);  // moved the 3.7 mm back to the ellipsoid's centre
+  EXPECT_NEAR(o.volumeMm3, 4.0 / 3.0 * M_PI * axes.prod(), 0.03 * 4.0 / 3.0 * M_PI * axes.prod());
+  EXPECT_EQ(msk::closedMeshProblem(o.mesh), "");
+}

@@ -10,6 +10,7 @@
 #include "msk/core/json.h"
 #include "msk/core/log.h"
 #include "msk/core/pbd_solver.h"
+#include "msk/core/volume_simplex.h"
 #include "msk/core/solver.h"
 #include "msk/segmentation/image_forces.h"
 #include "msk/segmentation/scene.h"
@@ -54,10 +55,12 @@ struct SegmentOptions {
   double collisionFriction = 0;     ///< default friction μ ∈ [0, 1]
   double boneMassRatio = 5;     ///< bone particles are this many times heavier than muscle ones (share less of a contact)
   int collisionFinalSweeps = 10;  ///< collision-only detect + project sweeps after the last step (penetration clean-up)
+  int collisionSideTestEvery = 10;  ///< steps between inside/outside tests of contacts (winding number; 0 = first step only)
   int separationSweeps = 32;    ///< most sweeps of the output-surface separation of declared pairs (0 = none)
   double radialStiffness = 0.1;   ///< default γ of the radial constraints of objects with a medial axis, [0, 1]
   double axisSpacingMm = 8.0;     ///< default distance between medial-axis vertices, mm
   double axisCentering = 0.5;     ///< γ of the axis re-centring on its surface per step, [0, 1]
+  double volumeStiffness = 0.5;   ///< default γ of the 3-simplex internal constraint of volumetric objects, [0, 1]
   PbdOptions pbd;               ///< time step, damping and drag of every scheme (pbd.iterations ≠ 1: see `iterations`)
   std::optional<Scheme> scheme; ///< evolution scheme (unset = preset)
   int substeps = 0;             ///< substeps per step (0 = preset)
@@ -96,6 +99,9 @@ struct ObjectResult {
   double volumeMm3 = 0, templateVolumeMm3 = 0;
   double meanImageResidualMm = 0;      ///< mean |target offset| at the end
   std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
+  TetMesh volumeMesh;                  ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
+  double volumeModelMm3 = 0;           ///< its volume, mm³ (0 without a volume model)
+  double volumeModelTemplateMm3 = 0;   ///< the volume of the tetrahedralised template, mm³
 };
 
 /// The result of a scene.
@@ -107,6 +113,7 @@ struct SegmentationResult {
   std::map<std::string, double> secondsPerStage;  ///< "features", "evolution", "rasterise"
   int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
   int collisionSetsBuilt = 0;    ///< directed vertex–surface collision sets built over all levels (0 without pairs)
+  int volumeModelsBuilt = 0;     ///< objects given a 3-simplex volume model (0 unless a model asks)
   int medialAxesBuilt = 0;       ///< objects given a medial axis with radial constraints (0 unless a model asks)
   size_t overlapVoxels = 0;      ///< voxels inside more than one object's surface
   /// Per declared pair (scene order): the deepest vertex of either output surface inside the other (winding-number
