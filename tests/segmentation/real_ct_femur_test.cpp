@@ -1,5 +1,6 @@
 // Real scan: the right femur of totalseg-ct segmented from a template built from the left femur's label, mirrored
-// across the mid-sagittal plane through the sacrum (label 25; the femur labels give only the template). Skipped without ../shared/data.
+// across the mid-sagittal plane through the sacrum (label 25; the femur labels give only the template). The profile
+// force learns its profiles on the left femur (the template's source), where the template fits by construction. Skipped without ../shared/data.
 #include <cstdio>
 #include <tuple>
 
@@ -15,6 +16,32 @@
 namespace {
 /// Mid-sagittal plane: x (RAS mm) of the sacrum's centroid (label 25), a midline landmark; no femur label is used.
 double midSagittalX(const msk::LabelMap& labels) { return msk::test::labelCentroid(labels, 25).x(); }
+
+/// A bone of the right side from the left side's label, mirrored across x = midX, with the profile force learning
+/// its profiles on the left structure ("profiles_from": {"mirror_x": midX}).
+msk::SceneObject mirroredBone(const msk::LabelMap& labels, const char* name, int label, int from, double midX) {
+  msk::SceneObject o;
+  o.name = name;
+  o.label = label;
+  o.kind = msk::ObjectKind::Bone;
+  o.templ = msk::test::mirroredTemplate(labels, from, midX);
+  o.hasForce = true;
+  o.force = o.model.imageForce = msk::TargetMode::Profile;
+  Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
+  mirror(0, 0) = -1;
+  mirror(0, 3) = 2 * midX;
+  o.profileSource = mirror;
+  return o;
+}
+
+/// The run's options: the global prior ends at λ = 0.2 and the finest search reaches ± 1 voxel (measured on the
+/// femur alone: defaults 0.884, λ_end 0.2 0.892, both 0.896).
+msk::SegmentOptions femurOptions() {
+  msk::SegmentOptions opts;
+  opts.priorEnd = 0.2;
+  opts.rangeFine = 1.0;
+  return opts;
+}
 }  // namespace
 
 TEST(RealCtFemur, MirroredContralateralTemplate) {
@@ -24,27 +51,22 @@ TEST(RealCtFemur, MirroredContralateralTemplate) {
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
 
   const double midX = midSagittalX(labels);
-  const msk::TriangleMesh templ = msk::test::mirroredTemplate(labels, 75, midX);
-
   msk::Scene scene;
-  msk::SceneObject femur;
-  femur.name = "femur_right";
-  femur.label = 76;
-  femur.kind = msk::ObjectKind::Bone;
-  femur.templ = templ;
-  scene.objects.push_back(femur);
-  const msk::SegmentationResult res = msk::segmentScene(ct, scene, msk::SegmentOptions{});
+  scene.objects.push_back(mirroredBone(labels, "femur_right", 76, 75, midX));
+  const msk::SegmentationResult res = msk::segmentScene(ct, scene, femurOptions());
 
   msk::LabelMap start(ct.grid, 0);
-  msk::rasterizeInto(start, templ, 76);
+  msk::rasterizeInto(start, scene.objects[0].templ, 76);
   const msk::SegmentationMetrics before = msk::labelMetrics(start, 76, labels, 76);
   const msk::SegmentationMetrics after = msk::labelMetrics(res.labels, 76, labels, 76);
   std::printf("mid-sagittal x = %.2f mm; mirrored template: Dice %.4f ASSD %.2f mm -> segmented: Dice %.4f ASSD %.2f "
               "mm HD95 %.2f mm (%.2f s)\n",
               midX, before.dice, before.assd, after.dice, after.assd, after.hd95, res.seconds);
-  // The issue asks Dice ≥ 0.90; what this pipeline reaches without the hip bone as a collision partner is ≈ 0.86–0.88
-  // (the femoral head bleeds into the acetabulum at 3 mm voxels). Guard what is achieved:
-  EXPECT_GT(after.dice, 0.85);
+  // Issue 3 asks Dice ≥ 0.90: not met (measured 0.896, ASSD 1.71 mm; gradient force 0.865, 0.874 with no target
+  // where a search line leaves the image). Most of the rest is the shaft: the mirrored left femur is about one voxel
+  // layer wider than this side's label in every shaft slice (70 extra voxels per slice) and the surface keeps about
+  // 55 of them. Guard the level reached.
+  EXPECT_GT(after.dice, 0.89);
   EXPECT_GT(after.dice, before.dice + 0.08);
   EXPECT_LT(after.assd, before.assd);
 }
@@ -58,16 +80,10 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
   const double midX = midSagittalX(labels);
   msk::Scene scene;
-  for (auto [name, label, from] : {std::tuple{"femur_right", 76, 75}, std::tuple{"hip_right", 78, 77}}) {
-    msk::SceneObject o;
-    o.name = name;
-    o.label = label;
-    o.kind = msk::ObjectKind::Bone;
-    o.templ = msk::test::mirroredTemplate(labels, from, midX);
-    scene.objects.push_back(o);
-  }
+  scene.objects.push_back(mirroredBone(labels, "femur_right", 76, 75, midX));
+  scene.objects.push_back(mirroredBone(labels, "hip_right", 78, 77, midX));
   scene.collisions.push_back({0, 1});
-  const msk::SegmentationResult res = msk::segmentScene(ct, scene, msk::SegmentOptions{});
+  const msk::SegmentationResult res = msk::segmentScene(ct, scene, femurOptions());
   msk::LabelMap start(ct.grid, 0);
   msk::rasterizeInto(start, scene.objects[0].templ, 76);
   msk::rasterizeInto(start, scene.objects[1].templ, 78);
@@ -80,5 +96,8 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
   std::printf("overlap voxels %zu, deepest penetration %.2f mm, %.1f s\n", res.overlapVoxels, res.pairPenetrationMm[0],
               res.seconds);
   const msk::SegmentationMetrics femur = msk::labelMetrics(res.labels, 76, labels, 76);
-  EXPECT_GT(femur.dice, 0.85);
+  // Issue 3's 0.90 is not met here either (measured 0.897; hip bone 0.951, no overlap): guard the level reached.
+  EXPECT_GT(femur.dice, 0.89);
+  EXPECT_GT(msk::labelMetrics(res.labels, 78, labels, 78).dice, 0.93);
+  EXPECT_EQ(res.overlapVoxels, 0u);
 }

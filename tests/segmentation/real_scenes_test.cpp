@@ -1,6 +1,8 @@
 // Real multi-object scenes (issue 4): every template is built from the contralateral label, mirrored across the
 // sagittal plane through a midline landmark, then displaced by 3 mm and scaled by ±3 % (a template is never exactly
-// in place). The image is cropped to the templates' box plus a margin; scores are taken on the full grid against the
+// in place); the profile force learns each object's profiles on the structure its template came from (the scene's
+// profile source: undo the displacement and scale, mirror back). The image is cropped to the box of the templates
+// and their sources plus a margin; scores are taken on the full grid against the
 // reference labels (TotalSegmentator's, not by hand). Skipped without ../shared/data.
 #include <algorithm>
 #include <cstdio>
@@ -13,6 +15,7 @@
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/rasterize.h"
 #include "msk/segmentation/metrics.h"
+#include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
 #include "msk/segmentation/template_builder.h"
 #include "test_support.h"
@@ -41,9 +44,25 @@ struct RealScene {
   msk::Scene scene;
 };
 
+/// The affine map from a template made by displacedScaled(mirrored, offset, scale) back to the contralateral
+/// structure it was mirrored from (the scene's profile source): undo the displacement and scale about the centroid,
+/// then mirror across x = midX.
+Eigen::Matrix4d sourceOfTemplate(const msk::TriangleMesh& templ, const Eigen::Vector3d& offsetMm, double scale,
+                                 double midX) {
+  const Eigen::Vector3d c = templ.vertices.colwise().mean().transpose();  // = mirrored centroid + offset
+  Eigen::Matrix4d undo = Eigen::Matrix4d::Identity();
+  undo.topLeftCorner<3, 3>() /= scale;
+  undo.topRightCorner<3, 1>() = c - offsetMm - c / scale;
+  Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
+  mirror(0, 0) = -1;
+  mirror(0, 3) = 2 * midX;
+  return mirror * undo;
+}
+
 /// Builds the scene: contralateral templates (mirrored across x = midX, `vertices` each), displaced by `displacementMm`
-/// along kDirections and scaled by kScales (none if `displacementMm` is 0), and the image cropped around them with
-/// `marginMm`.
+/// along kDirections and scaled by kScales (none if `displacementMm` is 0), every object with the profile force
+/// learning its profiles on the contralateral structure (profileSource), and the image cropped around the templates
+/// and their sources with `marginMm` (the sources must lie in the image).
 RealScene makeScene(const msk::ImageF& image, const msk::LabelMap& labels, const std::vector<ObjectSpec>& specs,
                     double midX, const std::vector<std::pair<int, int>>& pairs, int vertices = 3000,
                     double displacementMm = kDisplacementMm, double marginMm = 20) {
@@ -57,10 +76,17 @@ RealScene makeScene(const msk::ImageF& image, const msk::LabelMap& labels, const
     o.name = specs[i].name;
     o.label = specs[i].label;
     o.kind = specs[i].kind;
+    const Eigen::Vector3d offset = displacementMm * kDirections[i % 4];
+    const double scale = displacementMm > 0 ? kScales[i % 4] : 1.0;
     o.templ = msk::test::displacedScaled(msk::test::mirroredTemplate(labels, specs[i].templateFrom, midX, topts),
-                                         displacementMm * kDirections[i % 4],
-                                         displacementMm > 0 ? kScales[i % 4] : 1.0);
+                                         offset, scale);
+    o.hasForce = true;
+    o.force = o.model.imageForce = msk::TargetMode::Profile;
+    o.profileSource = sourceOfTemplate(o.templ, offset, scale, midX);
     meshes.push_back(o.templ);
+    meshes.push_back(o.templ);  // and where its profiles are learned
+    msk::Points normals = msk::Points::Zero(o.templ.vertexCount(), 3);
+    msk::toProfileSource(o, meshes.back().vertices, normals);
     rs.scene.objects.push_back(o);
   }
   for (const auto& [a, b] : pairs) rs.scene.collisions.push_back({a, b});
@@ -194,46 +220,47 @@ RealScene ctScene(const std::string& data, int vertices = 3000) {
 
 }  // namespace
 
-// Issue 4 asks each muscle Dice ≥ 0.90. Not met with the options the pipeline has today (measured: left 0.887 → 0.896,
-// right 0.795 → 0.873, 2.4 s): on this blurry MRI the steepest muscle–fat gradient lies about one voxel outside
-// TotalSegmentator's boundary (mean intensity 55 in the label's outer layer, 109 / 214 / 314 one, two, three voxels
-// out, fat ≈ 335), so gradient targets grow the muscles by 20–30 % in volume with the default options (Dice 0.84 / 0.80);
-// image stiffness 0.1 and far-target weighting 2 mm hold that down. Profiles learned at the initial position keep the
-// template where it starts. Guard the level reached.
+// Issue 4: each autochthon muscle Dice ≥ 0.90 and no overlap: met. Every object uses the profile force with its
+// profiles learned on the contralateral structure its template was mirrored from (on this blurry MRI the steepest
+// muscle–fat gradient lies about one voxel outside TotalSegmentator's boundary, so the gradient force grows the
+// muscles: 0.896 / 0.873 at best; profiles learned on the template itself keep it where it starts). Measured: left
+// 0.887 → 0.940, right 0.795 → 0.916, vertebrae 0.946 / 0.948, no overlap.
 TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   const RealScene rs = mrScene(data);
   msk::SegmentOptions opts;
-  opts.imageStiffness = 0.1;
-  opts.farTargetScaleMm = 2;
+  opts.priorEnd = 0.3;
   const SceneScore sc = runScene(rs, opts);
   printScore("totalseg-mr: autochthon muscles with the vertebrae", rs, sc);
   ASSERT_GE(sc.objects.size(), 3u);  // two muscles and at least one vertebra
-  EXPECT_GT(sc.objects[0].after.dice, 0.88);
-  EXPECT_GT(sc.objects[1].after.dice, 0.85);
-  EXPECT_GT(sc.objects[1].after.dice, sc.objects[1].before.dice + 0.05);
+  for (size_t i = 0; i < sc.objects.size(); ++i) {
+    EXPECT_GE(sc.objects[i].after.dice, i < 2 ? 0.90 : 0.92) << sc.objects[i].name;
+    EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice) << sc.objects[i].name;
+  }
   EXPECT_EQ(sc.overlapVoxels, 0u);
 }
 
-// Issue 4 asks each Dice ≥ 0.88 and no overlap. Not met yet (measured: femur 0.763 → 0.855, hip bone 0.847 → 0.924,
-// gluteus maximus 0.731 → 0.860, gluteus medius 0.770 → 0.851, 27 overlapping voxels, 7 s): with one edge polarity per
-// object the gluteus medius leaks into the iliac wing and the gluteus minimus (muscle against fat and against bone
-// have opposite edges), the femoral head bleeds into the acetabulum, the femur loses its last slice at the field of
-// view's edge, and the mirrored gluteus maximus is thinner than this side's in the lowest slices. Guard the level
-// reached (far-target weighting 3 mm is the best of the existing options).
+// Issue 4: each Dice ≥ 0.88 and no overlap. Every object uses the profile force learned on the contralateral
+// structure (the crop holds both sides), the global prior ends at λ = 0.2, the finest search reaches ± 1 voxel on an
+// image smoothed at σ = 1 voxel. Measured: femur 0.763 → 0.895, hip bone 0.847 → 0.947, gluteus maximus 0.731 →
+// 0.886, gluteus medius 0.770 → 0.860, no overlap. The gluteus medius is short of 0.88 (it reaches 0.855–0.863 from
+// every start and option tried, 0.859 from the undisplaced mirror, whose own Dice is 0.792: this side's muscle is
+// shaped differently and its boundary with the gluteus minimus is faint); guard its level.
 TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   const RealScene rs = ctScene(data);
   msk::SegmentOptions opts;
-  opts.farTargetScaleMm = 3;
+  opts.priorEnd = 0.2;
+  opts.rangeFine = 1.0;
+  opts.sigmaFine = 1.0;
   const SceneScore sc = runScene(rs, opts);
   printScore("totalseg-ct: right femur, hip bone, gluteus maximus and medius", rs, sc);
-  const double guard[] = {0.83, 0.91, 0.84, 0.83};
+  const double guard[] = {0.88, 0.88, 0.88, 0.85};
   for (size_t i = 0; i < sc.objects.size(); ++i) {
-    EXPECT_GT(sc.objects[i].after.dice, guard[i]) << sc.objects[i].name;
+    EXPECT_GE(sc.objects[i].after.dice, guard[i]) << sc.objects[i].name;
     EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice + 0.05) << sc.objects[i].name;
   }
-  EXPECT_LT(sc.overlapVoxels, 400u);
+  EXPECT_EQ(sc.overlapVoxels, 0u);
 }
