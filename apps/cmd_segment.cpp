@@ -8,6 +8,7 @@
 #include "args.h"
 #include "commands.h"
 #include "msk/core/json.h"
+#include "msk/core/log.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
@@ -181,9 +182,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
       j["volume_mm3"] = o.volumeMm3;
       j["template_volume_mm3"] = o.templateVolumeMm3;
       if (o.volumeMesh.tetCount() > 0) {
-        writeTetMesh(dir + "/" + o.name + ".vtu", o.volumeMesh, space);
+        // A tet mesh with inverted elements is not written (it would not be a valid volume); the report says so.
         Json vm;
-        vm["mesh"] = o.name + ".vtu";
+        if (o.invertedTets == 0) {
+          writeTetMesh(dir + "/" + o.name + ".vtu", o.volumeMesh, space);
+          vm["mesh"] = o.name + ".vtu";
+        } else {
+          log::warn(o.name + ".vtu not written: " + std::to_string(o.invertedTets) + " of " +
+                    std::to_string(o.volumeMesh.tetCount()) + " tets of the volume model are inverted");
+        }
+        vm["inverted_tets"] = o.invertedTets;
         vm["tets"] = o.volumeMesh.tetCount();
         vm["volume_mm3"] = o.volumeModelMm3;
         vm["template_volume_mm3"] = o.volumeModelTemplateMm3;

@@ -393,6 +393,8 @@ void finishObject(ObjectState& st) {
     all.bottomRows(st.volume->ghostCount()) = st.current.positions;
     out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all);
     out.volumeModelMm3 = totalVolume(out.volumeMesh);
+    const Eigen::VectorXd vols = tetVolumes(out.volumeMesh);
+    out.invertedTets = static_cast<int>((vols.array() <= 0).count());
     out.volumeModelTemplateMm3 = volumeSimplexVolume(*st.volume, st.volume->simplex.positions);
   }
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();

@@ -1,5 +1,7 @@
 // mskseg segment end to end: outputs, report contents, and bad input.
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include <gtest/gtest.h>
@@ -7,6 +9,7 @@
 #include "msk/core/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/imaging/tet_mesh_io.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -70,4 +73,38 @@ TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
         2, "--internal-stiffness");
   check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--quality", "ultra"}, 2,
         "ultra");
+}
+
+// A volumetric object (scene "model": {"volumetric": true}) also gets its tet mesh written as an LPS-tagged .vtu
+// when none of its tets is inverted (else a warning and the count in the report, and no file); the report says what
+// was built; without the key nothing volumetric is built.
+TEST(SegmentCli, VolumetricObjectWritesItsTetMesh) {
+  msk::test::ScratchDir dir;
+  const std::string out = dir.file("out");
+  const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
+                         femurScene(dir, ", \"model\": {\"volumetric\": true, \"volume_stiffness\": 0.5}"), "--out", out});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const msk::Json rep = msk::Json::readFile(out + "/report.json");
+  EXPECT_EQ(rep.at("volume_models_built").asInt(), 1);
+  const msk::Json& vm = rep.at("objects").asArray()[0].at("volume_model");
+  EXPECT_GT(vm.at("tets").asInt(), 1000);
+  const int inverted = vm.at("inverted_tets").asInt();
+  std::printf("femur volume model: %d tets, %d inverted, volume change %+.2f %%\n", vm.at("tets").asInt(), inverted,
+              vm.at("volume_change_percent").asNumber());
+  EXPECT_LT(inverted, vm.at("tets").asInt() / 100);
+  if (inverted == 0) {
+    msk::MeshSpace space = msk::MeshSpace::RAS;
+    const msk::TetMesh tets = msk::readTetMesh(out + "/femur.vtu", &space);
+    EXPECT_EQ(space, msk::MeshSpace::LPS);
+    EXPECT_EQ(msk::tetMeshProblem(tets), "");
+    EXPECT_EQ(vm.at("mesh").asString(), "femur.vtu");
+  } else {
+    EXPECT_FALSE(fs::exists(out + "/femur.vtu"));
+    EXPECT_NE(r.err.find("femur.vtu not written"), std::string::npos) << r.err;
+  }
+  const auto plain = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", femurScene(dir), "--out",
+                             dir.file("plain"), "--quality", "fast"});
+  ASSERT_EQ(plain.exitCode, 0) << plain.err;
+  EXPECT_FALSE(fs::exists(dir.file("plain") + "/femur.vtu"));
+  EXPECT_EQ(msk::Json::readFile(dir.file("plain") + "/report.json").at("volume_models_built").asInt(), 0);
 }

@@ -102,6 +102,7 @@ struct ObjectResult {
   TetMesh volumeMesh;                  ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
   double volumeModelMm3 = 0;           ///< its volume, mm³ (0 without a volume model)
   double volumeModelTemplateMm3 = 0;   ///< the volume of the tetrahedralised template, mm³
+  int invertedTets = 0;                ///< tets of volumeMesh with volume ≤ 0 (flat slivers of the mesher flip first)
 };
 
 /// The result of a scene.
