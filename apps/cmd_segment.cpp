@@ -76,7 +76,14 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (steps < 0 || steps > 100000) throw ParameterError("--steps", std::to_string(steps), "must be 1..100000");
   opts.levels = static_cast<int>(levels);
   opts.maxStepsPerLevel = static_cast<int>(steps);
-  if (args.has("scheme")) opts.scheme = parseScheme(args.str("scheme"));
+  if (args.has("scheme")) {
+    try {
+      opts.scheme = parseScheme(args.str("scheme"));
+    } catch (const ParameterError&) {
+      throw ParameterError("--scheme", args.str("scheme"),
+                           "must be gauss-seidel, coloured-gauss-seidel, jacobi, xpbd, explicit or implicit");
+    }
+  }
   for (auto [name, field, lo] : {std::tuple{"substeps", &opts.substeps, 1L}, std::tuple{"iterations", &opts.iterations, 1L},
                                  std::tuple{"threads", &opts.threads, 0L}}) {
     if (!args.has(name)) continue;
