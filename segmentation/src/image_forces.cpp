@@ -146,6 +146,11 @@ void parabolicPeak(double ym, double y0, double yp, double& shift, double& value
   value = y0 - 0.25 * (ym - yp) * shift;
 }
 
+/// How far along the search line (in sampling steps, 4 of the smallest voxel spacing by default) leaving the image
+/// counts: a range set from the largest spacing of a very anisotropic grid (8 mm slices) would otherwise reach out of
+/// a small in-plane field of view from every vertex.
+constexpr int kLeaveCheckSteps = 16;
+
 /// Whether the search line leaves the image: a candidate position at either end (±`reachMm` along the normal) has no
 /// value (the image is a box, so the ends decide). Such a line gets no target: the true edge may lie beyond the image
 /// (a scan or crop that cuts the object), and an edge found on the part inside would pull the surface to the wrong
@@ -241,7 +246,7 @@ VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r,
   const int half = r.halfSearch, n = 2 * half + 1;
   // One extra sample each side so the central difference exists over the whole ±range.
   buf.line.resize(static_cast<size_t>(n + 2));
-  if (leavesImage(sampler, half * r.stepMm)) return {};
+  if (leavesImage(sampler, std::min(half, kLeaveCheckSteps) * r.stepMm)) return {};
   for (int i = 0; i < n + 2; ++i) buf.line[i] = sampler.at((i - half - 1) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
   const double scale = sign / (2 * r.stepMm);
@@ -270,7 +275,7 @@ VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, 
   if (!(profileNorm > 0)) return {};
   const int lineLen = n + len - 1;  // samples at (j − half − profileHalf)·step
   buf.line.resize(static_cast<size_t>(lineLen));
-  if (leavesImage(sampler, half * r.stepMm)) return {};
+  if (leavesImage(sampler, std::min(half, kLeaveCheckSteps) * r.stepMm)) return {};
   for (int j = 0; j < lineLen; ++j) buf.line[j] = sampler.at((j - half - profileHalf) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
   bool any = false;

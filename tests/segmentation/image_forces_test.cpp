@@ -291,7 +291,7 @@ TEST(ImageForcesRobustness, VerticesOutsideTheImageGetNoForce) {
 }
 
 TEST(ImageForcesRobustness, SearchLinesLeavingTheImageGetNoTarget) {
-  // The ball's image cut to ±26 mm: lines from r = 22 mm reaching 12 mm outward leave the image near the faces of the
+  // The ball's image cut to ±26 mm: lines from r = 22 mm reaching 8 mm outward leave the image near the faces of the
   // cube and stay inside toward its corners. A line that leaves gets no target (the edge found on its inner part
   // could be a different edge than the one beyond the image); a line inside finds the ball.
   const ImageF image = makeImage({1.2, 1.2, 3.0}, {10, -5, 20}, 26,
@@ -310,8 +310,8 @@ TEST(ImageForcesRobustness, SearchLinesLeavingTheImageGetNoTarget) {
     SCOPED_TRACE(mode == TargetMode::Gradient ? "gradient" : "profile");
     TargetSearchOptions opts;
     opts.mode = mode;
-    opts.rangeMm = 12;
-    opts.stepMm = 0.3;
+    opts.rangeMm = 8;
+    opts.stepMm = 0.5;  // 16 steps: leaving the image counts over the whole range
     opts.profileHalfLengthMm = 3;
     opts.regularisationRings = 0;
     const LearnedProfiles lp = learnProfiles(f, truth.positions, truth.normals, opts, g);
