@@ -1,6 +1,10 @@
 #include "msk/segmentation/segmenter.h"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -367,6 +371,36 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   if (st.volumeSet) st.volumeSet->setFirstParticle(st.volFirst);  // tets first, then the ghosts = the surface
 }
 
+/// Detects the contacts of every collision set at positions `p`. The sets only read the positions and their shared
+/// partner surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all
+/// cores) with the same result as one.
+void detectAll(std::vector<std::unique_ptr<CollisionConstraints>>& sets, const Points& p, bool sideTest, int threads) {
+  const size_t n = sets.size();
+  const size_t workers = std::min(n, static_cast<size_t>(threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency())));
+  if (workers <= 1) {
+    for (auto& c : sets) c->detect(p, sideTest);
+    return;
+  }
+  std::atomic<size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex failureMutex;
+  auto work = [&]() {
+    for (size_t k = next++; k < n; k = next++) {
+      try {
+        sets[k]->detect(p, sideTest);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(failureMutex);
+        if (!failure) failure = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < workers; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+}
+
 /// Builds the radial constraints and the axis re-centring of an object with a medial axis, once its axis particles
 /// have their place in the stacked system (st.axisFirst).
 void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
@@ -473,6 +507,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   const double proximity =
       opts.collisionProximityMm > 0 ? opts.collisionProximityMm : std::max(1.0, 0.5 * image.grid.spacing.maxCoeff());
   double collisionDetectSeconds = 0;
+  const int detectionThreads = opts.threads;
   // Contact parameters of a pair: the scene's values where it sets them, else the run's.
   auto pairGap = [&](const CollisionPair& p) { return p.gapMm >= 0 ? p.gapMm : opts.collisionGapMm; };
   auto pairProximity = [&](const CollisionPair& p) { return p.proximityMm > 0 ? p.proximityMm : proximity; };
@@ -581,7 +616,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         // The side test (winding number) on the first step of a level and every few steps after it, so that a vertex
         // that got through a partner is found and pushed back out the right way.
         const bool sideTest = s == 0 || (opts.collisionSideTestEvery > 0 && s % opts.collisionSideTestEvery == 0);
-        for (auto& c : collide) c->detect(solver.positions(), sideTest);
+        detectAll(collide, solver.positions(), sideTest, detectionThreads);
         collisionDetectSeconds += since(tc);
       }
       rep.lastMaxMoveMm = solver.step(sets);

@@ -248,3 +248,25 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   EXPECT_NEAR(o.volumeMm3, 4.0 / 3.0 * M_PI * axes.prod(), 0.03 * 4.0 / 3.0 * M_PI * axes.prod());
   EXPECT_EQ(msk::closedMeshProblem(o.mesh), "");
 }
+
+// Collision detection runs its sets on --threads threads; the result is the same as on one.
+TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
+  const msk::Grid g = cubeGrid(1.0, 30);
+  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
+  msk::Scene scene = oneObjectScene(msk::makeIcosphere(10, 3, {-7, 0, 0}));
+  msk::SceneObject other = scene.objects[0];
+  other.name = "other";
+  other.label = 2;
+  other.templ = msk::makeIcosphere(10, 3, {11, 0, 0});
+  scene.objects.push_back(other);
+  msk::CollisionPair pair;
+  pair.a = 0;
+  pair.b = 1;
+  scene.collisions.push_back(pair);
+  msk::SegmentOptions one, two;
+  two.threads = 2;
+  const msk::SegmentationResult a = msk::segmentScene(img, scene, one), b = msk::segmentScene(img, scene, two);
+  ASSERT_EQ(a.collisionSetsBuilt, 2 * a.settings.levels);
+  for (size_t i = 0; i < 2; ++i) EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(a.overlapVoxels, b.overlapVoxels);
+}

@@ -65,7 +65,8 @@ struct SegmentOptions {
   std::optional<Scheme> scheme; ///< evolution scheme (unset = preset)
   int substeps = 0;             ///< substeps per step (0 = preset)
   int iterations = 0;           ///< projection sweeps per substep (0 = pbd.iterations if ≠ 1, else preset)
-  int threads = 1;              ///< threads of the coloured, Jacobi and CG schemes (0 = all cores); results do not depend on it
+  int threads = 1;              ///< threads of the coloured, Jacobi and CG schemes and of collision detection (0 = all
+                                ///< cores); results do not depend on it
   double xpbdStiffness = 4.0;   ///< XPBD k, mass-relative (XpbdStiffness::MassRelative): k × the force stiffness γ m̄ dt⁻²
   double jacobiOmega = 1.5;     ///< Jacobi relaxation ω ∈ (0, 2)
 };
