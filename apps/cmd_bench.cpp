@@ -99,10 +99,10 @@ void writeCsv(const std::string& path, const std::vector<ObjectFigures>& objects
 }
 
 int benchScene(const std::vector<std::string>& argv) {
-  Args args(argv, {"structures", "quality", "seed", "out", "spacing", "vertices"}, {"help", "no-collisions"});
+  Args args(argv, {"structures", "quality", "seed", "out", "spacing", "vertices", "threads"}, {"help", "no-collisions"});
   if (args.has("help")) {
     std::cout << "usage: mskseg bench scene [--structures 24|4] [--quality fast|balanced|accurate] [--seed N]\n"
-                 "                          [--spacing 1.2,1.2,3] [--vertices N] [--no-collisions] [--out DIR]\n\n"
+                 "                          [--spacing 1.2,1.2,3] [--vertices N] [--threads N] [--no-collisions] [--out DIR]\n\n"
                  "Generates a synthetic phantom scene (24: both thighs and lower legs, 4 bones + 20 muscles; 4: the\n"
                  "thigh), segments it from its mean-anatomy templates with the scene's collision pairs and prints the\n"
                  "time per stage (generation, features, evolution, collision detection, rasterise), the constraint\n"
@@ -113,6 +113,7 @@ int benchScene(const std::vector<std::string>& argv) {
                  "  --seed        phantom seed                             (default 1)\n"
                  "  --spacing     voxel size in mm                         (default 1.2,1.2,3)\n"
                  "  --vertices    vertices of each template/truth mesh     (default 3000)\n"
+                 "  --threads     threads of collision detection and the parallel schemes (default 1; 0 = all)\n"
                  "  --no-collisions  ignore the collision pairs\n"
                  "  --out         also write bench.json, objects.csv, the result label map (labels.nii.gz) and\n"
                  "                surfaces (result_<name>.vtk, LPS) into DIR, atomically; `mskseg phantom\n"
@@ -127,6 +128,9 @@ int benchScene(const std::vector<std::string>& argv) {
   SegmentOptions sopts;
   sopts.quality = parseQuality(args.str("quality", "balanced"));
   sopts.collisions = !args.has("no-collisions");
+  const long threads = args.integer("threads", 1);
+  if (threads < 0 || threads > 1024) throw ParameterError("--threads", args.str("threads"), "must be 0..1024");
+  sopts.threads = static_cast<int>(threads);
   PhantomOptions popts;
   const long seed = args.integer("seed", 1);
   if (seed < 0 || seed > 0xffffffffL) throw ParameterError("--seed", std::to_string(seed), "must be in [0, 2^32)");
@@ -250,6 +254,7 @@ int benchScene(const std::vector<std::string>& argv) {
     j["seed"] = static_cast<unsigned long>(popts.seed);
     j["quality"] = qualityName(sopts.quality);
     j["collisions"] = sopts.collisions;
+    j["threads"] = sopts.threads;
     j["voxels"] = static_cast<unsigned long>(g.voxelCount());
     j["simplex_vertices"] = static_cast<unsigned long>(vertexCount);
     Json stages = Json::object();

@@ -42,6 +42,7 @@ struct ActiveSample {
   int sample = 0;
   Eigen::Vector3d outward = Eigen::Vector3d::Zero();  ///< B's outward direction at the sample's last contact
   Eigen::Vector3d contact = Eigen::Vector3d::Zero();  ///< where that contact was, mm
+  double distance = 0;  ///< its distance to B then (outside), mm; far samples wait for the next refresh
 };
 
 /// One direction of one pair, A's samples against B's surface: each sample inside B or closer than the gap is moved
@@ -68,6 +69,9 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
   }
   const int n = refresh ? sampleCount(A) : static_cast<int>(active.size());
   for (int i = 0; i < n; ++i) {
+    // Between refreshes a sample last seen outside and more than 1 mm beyond the gap is left alone: corrections
+    // move surfaces by far less per sweep.
+    if (!refresh && active[static_cast<size_t>(i)].distance > gap + 1.0) continue;
     const int k = refresh ? i : active[static_cast<size_t>(i)].sample;
     int ia[3];
     double wa[3];
@@ -93,12 +97,15 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
       normal.normalize();
     }
     if (refresh) {
-      active.push_back({k, normal, s.point});
+      active.push_back({k, normal, s.point, inside ? 0.0 : s.distance});
     } else {
       active[static_cast<size_t>(i)].outward = normal;
       active[static_cast<size_t>(i)].contact = s.point;
+      active[static_cast<size_t>(i)].distance = inside ? 0.0 : s.distance;
     }
-    if (!inside && s.distance >= gap) continue;
+    // Corrected when inside, or outside but nearer than half the gap (then moved out to the full gap): the
+    // hysteresis keeps touching surfaces from trading ever smaller corrections.
+    if (!inside && s.distance >= 0.5 * gap) continue;
     out.anyInside = out.anyInside || inside;
     const double pcn = (s.point - q).dot(normal);
     if (!(pcn + gap > 0)) continue;
