@@ -350,7 +350,15 @@ void ShapeMatchingConstraint::fit(const Points& pAll, const Eigen::VectorXd& wAl
   const double wmax = w.maxCoeff();
   Eigen::VectorXd mass(w.size());
   for (int i = 0; i < w.size(); ++i) mass[i] = w[i] > 0 ? 1.0 / w[i] : 1e6 / std::max(wmax, 1e-300);
-  last_ = fitTransform(ref_, Points(pAll.middleRows(first_, n)), mass, transform_);
+  // A non-finite particle takes no part in the fit (weight 0, and a finite stand-in, since 0 · NaN is NaN), so one
+  // bad position cannot make every goal NaN; with no finite particle the last transform is kept.
+  Points current = pAll.middleRows(first_, n);
+  for (int i = 0; i < n; ++i)
+    if (!current.row(i).allFinite()) {
+      mass[i] = 0;
+      current.row(i) = ref_.row(i);
+    }
+  if (mass.maxCoeff() > 0) last_ = fitTransform(ref_, current, mass, transform_);
 }
 
 void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll) {
@@ -363,7 +371,7 @@ void ShapeMatchingConstraint::project(Points& pAll, const Eigen::VectorXd& wAll)
   const Eigen::Matrix3d m = last_.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = last_.topRightCorner<3, 1>();
   for (int i = 0; i < p.rows(); ++i) {
-    if (w[i] <= 0) continue;
+    if (w[i] <= 0 || !p.row(i).allFinite()) continue;  // a non-finite particle is left for the solver to report
     const Eigen::Vector3d goal = m * ref_.row(i).transpose() + t;
     p.row(i) += lambda_ * (goal.transpose() - p.row(i));
   }
