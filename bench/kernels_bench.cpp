@@ -281,38 +281,10 @@ void BM_Radial(benchmark::State& state) {
 }
 BENCHMARK(BM_Radial)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 
-/// An n×n×n block of cubes of edge h, each cube split into 6 positively oriented Freudenthal tets.
-msk::TetMesh cubeTets(int n, double h) {
-  msk::TetMesh m;
-  const int s = n + 1;
-  m.nodes.resize(s * s * s, 3);
-  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
-  for (int k = 0; k < s; ++k)
-    for (int j = 0; j < s; ++j)
-      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
-  const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  m.tets.resize(6 * n * n * n, 4);
-  int t = 0;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& order : orders) {
-          int c[3] = {i, j, k}, row[4];
-          row[0] = id(c[0], c[1], c[2]);
-          for (int a = 0; a < 3; ++a) {
-            ++c[order[a]];
-            row[a + 1] = id(c[0], c[1], c[2]);
-          }
-          if (msk::signedTetVolume(m.nodes.row(row[0]), m.nodes.row(row[1]), m.nodes.row(row[2]), m.nodes.row(row[3])) < 0)
-            std::swap(row[2], row[3]);
-          m.tets.row(t++) << row[0], row[1], row[2], row[3];
-        }
-  return m;
-}
 
 // 3-simplex internal constraints of a volume model (tets and ghosts constrained), cube block of n³ cells, 2 mm.
 void BM_VolumeSimplex(benchmark::State& state) {
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(static_cast<int>(state.range(0)), 2.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(static_cast<int>(state.range(0)), 2.0));
   msk::VolumeSimplexConstraints c(vm, 0.5, msk::VolumeBoundary::Constrained);
   const int n = vm.vertexCount();
   msk::Points p = perturbed(vm.simplex.positions, 0.1, 5);

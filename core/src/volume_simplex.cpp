@@ -1,6 +1,8 @@
 #include "msk/core/volume_simplex.h"
 
 #include <algorithm>
+#include <string>
+#include <utility>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -392,6 +394,37 @@ bool VolumeSimplexConstraints::row(int r, const Points& p, const Eigen::VectorXd
   out.gamma = gamma_;
   out.direction = false;
   return out.c.allFinite();
+}
+
+TetMesh makeCubeTets(int n, double edgeMm) {
+  if (n < 1 || !(edgeMm > 0)) throw ParameterError("cube tets", std::to_string(n) + " x " + std::to_string(edgeMm),
+                                                   "need n >= 1 cubes of a positive edge");
+  TetMesh m;
+  const int s = n + 1;
+  m.nodes.resize(s * s * s, 3);
+  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
+  for (int k = 0; k < s; ++k)
+    for (int j = 0; j < s; ++j)
+      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << edgeMm * i, edgeMm * j, edgeMm * k;
+  // Each tet follows a path 0 → e_a → e_a + e_b → (1,1,1) through its cube.
+  const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  m.tets.resize(6 * n * n * n, 4);
+  int t = 0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& order : orders) {
+          int c[3] = {i, j, k}, row[4];
+          row[0] = id(c[0], c[1], c[2]);
+          for (int a = 0; a < 3; ++a) {
+            ++c[order[a]];
+            row[a + 1] = id(c[0], c[1], c[2]);
+          }
+          if (signedTetVolume(m.nodes.row(row[0]), m.nodes.row(row[1]), m.nodes.row(row[2]), m.nodes.row(row[3])) < 0)
+            std::swap(row[2], row[3]);
+          m.tets.row(t++) << row[0], row[1], row[2], row[3];
+        }
+  return m;
 }
 
 }  // namespace msk

@@ -94,34 +94,6 @@ class NaNInjector : public msk::ConstraintSet {
   int at_;
 };
 
-/// An n³ block of cubes of edge h split into positively oriented Freudenthal tets.
-msk::TetMesh cubeTets(int n, double h) {
-  msk::TetMesh m;
-  const int s = n + 1;
-  m.nodes.resize(s * s * s, 3);
-  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
-  for (int k = 0; k < s; ++k)
-    for (int j = 0; j < s; ++j)
-      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
-  const int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  m.tets.resize(6 * n * n * n, 4);
-  int t = 0;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& order : orders) {
-          int c[3] = {i, j, k}, row[4];
-          row[0] = id(c[0], c[1], c[2]);
-          for (int a = 0; a < 3; ++a) {
-            ++c[order[a]];
-            row[a + 1] = id(c[0], c[1], c[2]);
-          }
-          if (msk::signedTetVolume(m.nodes.row(row[0]), m.nodes.row(row[1]), m.nodes.row(row[2]), m.nodes.row(row[3])) < 0)
-            std::swap(row[2], row[3]);
-          m.tets.row(t++) << row[0], row[1], row[2], row[3];
-        }
-  return m;
-}
 
 }  // namespace
 
@@ -132,7 +104,7 @@ msk::TetMesh cubeTets(int n, double h) {
 TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
   const msk::SimplexMesh s = sphere(10.0);
   const msk::RadialAttachment att = msk::attachToAxis(s.positions, (msk::Points(2, 3) << 0, 0, -10, 0, 0, 10).finished());
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(2, 1.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 1.0));
   for (const double g : {0.0, 1e-12, 1.0}) {
     EXPECT_NO_THROW(msk::SimplexInternalConstraints(s, g));
     EXPECT_NO_THROW(msk::TargetConstraints{g});
@@ -258,7 +230,7 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
     for (int i = 0; i < 2 * na; i += 7) EXPECT_TRUE(p.row(i) == before.row(i)) << "collision, fixed particle " << i;
   }
   {
-    const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(2, 1.0));
+    const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 1.0));
     msk::VolumeSimplexConstraints c(vm, 1.0, msk::VolumeBoundary::Constrained);
     msk::Points p = perturbed(vm.simplex.positions, 0.2, 7);
     Eigen::VectorXd wv = Eigen::VectorXd::Ones(vm.vertexCount());
@@ -404,7 +376,7 @@ TEST(ExtremeElements, SetsSkipDegenerateNeighbourhoodsAndStayFinite) {
   std::printf("[ elements ] degenerate run largest step %.3g mm, inverted %.3g mm\n", largest, largestInverted);
   EXPECT_LT(largestInverted, 25.0);
   // 3-simplex model with an inverted tet (one interior tet vertex pushed through its neighbours).
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(3, 1.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(3, 1.0));
   msk::VolumeSimplexConstraints vc(vm, 1.0, msk::VolumeBoundary::Constrained);
   msk::Points pv = vm.simplex.positions;
   const int t = vm.tetCount() / 2;

@@ -101,37 +101,6 @@ RunResult run(const SolverOptions& o, const SphereProblem& s, int maxSteps, doub
   return r;
 }
 
-/// n×n×n cubes of side h, each split into 6 positively oriented tets around its main diagonal.
-msk::TetMesh cubeGrid(int n, double h) {
-  msk::TetMesh m;
-  const int s = n + 1;
-  m.nodes.resize(s * s * s, 3);
-  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
-  for (int k = 0; k < s; ++k)
-    for (int j = 0; j < s; ++j)
-      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
-  std::vector<Eigen::Vector4i> tets;
-  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& pm : perms) {  // path 0 → e_a → e_a + e_b → (1,1,1)
-          int c[3] = {i, j, k};
-          Eigen::Vector4i t;
-          t[0] = id(c[0], c[1], c[2]);
-          for (int step = 0; step < 3; ++step) {
-            ++c[pm[step]];
-            t[step + 1] = id(c[0], c[1], c[2]);
-          }
-          const Eigen::Vector3d a = m.nodes.row(t[0]), b = m.nodes.row(t[1]), cc = m.nodes.row(t[2]),
-                                d = m.nodes.row(t[3]);
-          if (msk::signedTetVolume(a, b, cc, d) < 0) std::swap(t[1], t[2]);
-          tets.push_back(t);
-        }
-  m.tets.resize(static_cast<int>(tets.size()), 4);
-  for (size_t t = 0; t < tets.size(); ++t) m.tets.row(static_cast<int>(t)) = tets[t].transpose();
-  return m;
-}
 
 /// The correction one row gives alone (PBD, Δλ = −γ C / W), as a full #V×3 displacement.
 Points rowCorrection(const msk::ConstraintRow& r, const Eigen::VectorXd& w, int n) {
@@ -492,7 +461,7 @@ TEST(ConstraintRows, RadialAndVolumeRowsReproduceTheirKernels) {
     EXPECT_LT((d - k).cwiseAbs().maxCoeff(), 1e-12) << "radial row " << r;
   }
   // 3-simplex: a jittered 2×2×2 cube model, ghosts constrained too.
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeGrid(2, 5.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 5.0));
   const int nvol = vm.vertexCount();
   Points pv = vm.simplex.positions;
   for (int i = 0; i < nvol; ++i)
@@ -524,7 +493,7 @@ TEST(ConstraintRows, RadialAndVolumeRowsReproduceTheirKernels) {
 
 // A jittered volume model with its ghosts fixed returns to rest under every scheme (the unique answer).
 TEST(SolverSchemes, VolumeModelReturnsToRestUnderEveryScheme) {
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeGrid(2, 5.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 5.0));
   const int n = vm.vertexCount();
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> jitter(-0.8, 0.8);

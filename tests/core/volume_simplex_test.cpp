@@ -16,36 +16,6 @@ Eigen::Vector3d randomVec(std::mt19937& rng, double s = 1.0) {
   return {u(rng), u(rng), u(rng)};
 }
 
-/// An n×n×n block of cubes of edge h (origin at 0), each cube split into the 6 Freudenthal tets, positively oriented.
-msk::TetMesh cubeTets(int n, double h) {
-  msk::TetMesh m;
-  const int s = n + 1;
-  m.nodes.resize(s * s * s, 3);
-  auto id = [s](int i, int j, int k) { return i + s * (j + s * k); };
-  for (int k = 0; k < s; ++k)
-    for (int j = 0; j < s; ++j)
-      for (int i = 0; i < s; ++i) m.nodes.row(id(i, j, k)) << h * i, h * j, h * k;
-  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  m.tets.resize(6 * n * n * n, 4);
-  int t = 0;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& perm : perms) {
-          int c[3] = {i, j, k};
-          int row[4];
-          row[0] = id(c[0], c[1], c[2]);
-          for (int a = 0; a < 3; ++a) {
-            ++c[perm[a]];
-            row[a + 1] = id(c[0], c[1], c[2]);
-          }
-          const double v =
-              msk::signedTetVolume(m.nodes.row(row[0]), m.nodes.row(row[1]), m.nodes.row(row[2]), m.nodes.row(row[3]));
-          if (v < 0) std::swap(row[2], row[3]);
-          m.tets.row(t++) << row[0], row[1], row[2], row[3];
-        }
-  return m;
-}
 
 /// Inverse masses: tets free (1), ghosts fixed (0).
 Eigen::VectorXd ghostsFixed(const msk::VolumeSimplexMesh& vm) {
@@ -130,7 +100,7 @@ TEST(SimplexBarycentric, TetrahedronCoplanarAndOffPlane) {
 }
 
 TEST(TetMesh, VolumesBoundaryAndProblems) {
-  const msk::TetMesh m = cubeTets(3, 2.0);
+  const msk::TetMesh m = msk::makeCubeTets(3, 2.0);
   EXPECT_EQ(msk::tetMeshProblem(m), "");
   EXPECT_NEAR(msk::totalVolume(m), 216.0, 1e-9);
   EXPECT_GT(msk::tetVolumes(m).minCoeff(), 0.0);
@@ -153,7 +123,7 @@ TEST(TetMesh, VolumesBoundaryAndProblems) {
 TEST(VolumeSimplex, DualOfCubeIsValidAndReproducesRest) {
   const int n = 4;
   const double h = 2.5;
-  const msk::TetMesh m = cubeTets(n, h);
+  const msk::TetMesh m = msk::makeCubeTets(n, h);
   const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(m);
   EXPECT_EQ(vm.simplex.k, 3);
   EXPECT_EQ(msk::simplexMeshProblem(vm.simplex), "");
@@ -189,7 +159,7 @@ TEST(VolumeSimplex, DualOfCubeIsValidAndReproducesRest) {
 TEST(VolumeSimplexConstraints, RestoreInteriorWithGhostsFixed) {
   const int n = 4;
   const double h = 2.5, side = n * h, diag = std::sqrt(3.0) * side, vol0 = side * side * side;
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(n, h));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(n, h));
   const msk::Points rest = vm.simplex.positions;
   std::mt19937 rng(3);
   msk::Points p = rest;
@@ -213,7 +183,7 @@ TEST(VolumeSimplexConstraints, RestoreInteriorWithGhostsFixed) {
 // The surface drives the volume: ghosts moved by an affine map pull the interior to the same map (ε̃ are affine
 // invariant), so the volume follows det(A).
 TEST(VolumeSimplexConstraints, SurfaceDrivesVolume) {
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(3, 3.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(3, 3.0));
   Eigen::Matrix3d a;
   a << 1.2, 0.1, 0.0, -0.05, 0.9, 0.1, 0.0, 0.2, 1.1;
   const Eigen::RowVector3d t(4, -2, 7);
@@ -229,7 +199,7 @@ TEST(VolumeSimplexConstraints, SurfaceDrivesVolume) {
 
 // A pass over free particles conserves total linear momentum, and firstParticle() addresses a stacked system.
 TEST(VolumeSimplexConstraints, StackedAndMomentumConserving) {
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cubeTets(2, 1.0));
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 1.0));
   const int first = 7, n = vm.vertexCount();
   std::mt19937 rng(5);
   msk::Points p(first + n + 3, 3);

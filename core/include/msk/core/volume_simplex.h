@@ -61,6 +61,10 @@ Triangles tetBoundaryFaces(const TetMesh& mesh, Eigen::VectorXi* owner = nullptr
 /// `nodeOf` (optional) receives the tet-mesh node of each surface vertex.
 TriangleMesh tetBoundary(const TetMesh& mesh, Eigen::VectorXi* nodeOf = nullptr);
 
+/// An n×n×n block of cubes of edge `edgeMm` (corner at the origin), each cube split into the 6 Freudenthal tets
+/// around its main diagonal, positively oriented (a test and benchmark volume, as makeIcosphere is for surfaces).
+TetMesh makeCubeTets(int n, double edgeMm);
+
 /// A 3-simplex volume model dual to a tet mesh, ghosts included (see the file comment).
 struct VolumeSimplexMesh {
   /// k = 3 mesh: vertices [0, T) are the tets (at their centroids), [T, T + B) the ghosts (boundary face centroids).
