@@ -51,6 +51,7 @@ Eigen::Vector3i CollisionSurface::cellOf(const Eigen::Vector3d& x) const {
 }
 
 void CollisionSurface::update(const Points& p) {
+  winding_.reset();
   const int nt = static_cast<int>(tri_.rows());
   start_.clear();
   items_.clear();
@@ -160,6 +161,12 @@ Eigen::Vector3d CollisionSurface::pseudonormal(const Points& p, const SurfacePoi
     if (e != edgeFaces_.end()) return faceNormal(p, e->second.first) + faceNormal(p, e->second.second);
   }
   return faceNormal(p, t);
+}
+
+const WindingNumber& CollisionSurface::winding(const Points& p) const {
+  std::lock_guard<std::mutex> lock(windingMutex_);
+  if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_);
+  return *winding_;
 }
 
 Eigen::Vector3d CollisionSurface::smoothNormal(const Points& p, const SurfacePoint& s) const {

@@ -457,7 +457,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
   if (surface_->triangles().rows() == 0 || count_ == 0) return;
   if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
-  std::optional<WindingNumber> winding;  // of B at p, built at the first contact that needs a side
+  const WindingNumber* winding = nullptr;  // of B at p (shared with the other sets against B), when a side is needed
   for (int v = 0; v < count_; ++v) {
     const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
     const SurfacePoint s = surface_->closest(p, q, reach);
@@ -469,7 +469,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
     // pseudonormal there can point the wrong way and push the vertex through).
     const Eigen::Vector3d off = q - s.point;
     if (s.distance > 1e-9 * (1.0 + q.norm())) {
-      if (insideTest && !winding) winding.emplace(p, surface_->triangles());
+      if (insideTest && !winding) winding = &surface_->winding(p);
       const bool inside = insideTest && winding->inside(q);
       found.normal = (inside ? -1.0 : 1.0) * off / s.distance;
     } else {  // on the surface: B's outward side

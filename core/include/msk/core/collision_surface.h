@@ -2,12 +2,15 @@
 /// The partner side of vertex–surface collisions (DESIGN-NOTES §3): a closed triangulated surface whose corners are
 /// particles of a stacked system, with its connectivity set up once and a uniform grid over its triangles rebuilt
 /// once per step, shared by every collision set that tests vertices against it.
+#include <memory>
+#include <mutex>
 #include <unordered_map>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
+#include "msk/core/winding_number.h"
 
 namespace msk {
 
@@ -31,6 +34,9 @@ class CollisionSurface {
   /// Pseudonormal of the closest feature of `s` (face, edge: sum of its two faces, vertex: angle-weighted), not unit:
   /// its sign against q − point is exact for a closed, non-self-intersecting surface (Bærentzen & Aanæs 2005).
   Eigen::Vector3d pseudonormal(const Points& p, const SurfacePoint& s) const;
+  /// The surface's winding number at positions `p` (those of the last update()), built on the first call after each
+  /// update() and shared by every set against this surface (thread-safe).
+  const WindingNumber& winding(const Points& p) const;
   /// Smooth normal at `s`: the corners' (unweighted) vertex normals interpolated with the barycentric weights.
   Eigen::Vector3d smoothNormal(const Points& p, const SurfacePoint& s) const;
   /// The triangles (global particle indices).
@@ -55,6 +61,8 @@ class CollisionSurface {
   double cell_ = 1;
   Eigen::Vector3i dims_ = Eigen::Vector3i::Zero();
   std::vector<int> start_, items_;        ///< cell → triangles (CSR)
+  mutable std::unique_ptr<WindingNumber> winding_;  ///< of the last update(), built on demand
+  mutable std::mutex windingMutex_;
 };
 
 }  // namespace msk
