@@ -11,6 +11,14 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+// A 4-lane path with AVX (256-bit doubles), compiled for that instruction set function by function and chosen at run
+// time when the processor has it; the project's flags (no -march) stay as they are.
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__SSE2__)
+#define MSK_BATCH_AVX 1
+#include <immintrin.h>
+#else
+#define MSK_BATCH_AVX 0
+#endif
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
@@ -19,16 +27,40 @@ namespace msk {
 
 namespace {
 
+#if defined(__GNUC__) || defined(__clang__)
+#define MSK_BATCH_INLINE inline __attribute__((always_inline))
+#else
+#define MSK_BATCH_INLINE inline
+#endif
+
+/// The arrays one sweep reads and writes: positions and inverse masses seen from the set's first particle (Points is
+/// column-major, so x, y and z are each contiguous), and the stored rows.
+struct BatchArrays {
+  double *x, *y, *z;
+  const double* w;
+  const int *v, *n0, *n1, *n2;
+  const double *e0, *e1, *e2, *hr;
+};
+
+/// Where computeRows() writes each row's Jacobi correction.
+struct JacobiOut {
+  double *dx, *dy, *dz, *c0, *c1, *c2, *c3;
+  std::uint8_t* kept;
+};
+
 // ------------------------------------------------------------------------------------------------ two lanes
 
 // Two doubles processed together: SSE2 registers on x86-64 (part of the baseline, no -march needed), a pair of
 // scalars elsewhere. Masks are all-ones / all-zeros lanes, as the SSE2 comparisons give them.
 #if defined(__SSE2__)
 struct D2 {
+  static constexpr int lanes = 2;
   __m128d v;
 };
-inline D2 set2(double lo, double hi) { return {_mm_set_pd(hi, lo)}; }
 inline D2 splat(double a) { return {_mm_set1_pd(a)}; }
+inline D2 gather(const double* b, const int* i) { return {_mm_set_pd(b[i[1]], b[i[0]])}; }
+inline D2 loadu(const double* p) { return {_mm_loadu_pd(p)}; }
+inline void storeu(D2 a, double* out) { _mm_storeu_pd(out, a.v); }
 inline D2 operator+(D2 a, D2 b) { return {_mm_add_pd(a.v, b.v)}; }
 inline D2 operator-(D2 a, D2 b) { return {_mm_sub_pd(a.v, b.v)}; }
 inline D2 operator*(D2 a, D2 b) { return {_mm_mul_pd(a.v, b.v)}; }
@@ -38,18 +70,21 @@ inline D2 vmax(D2 a, D2 b) { return {_mm_max_pd(a.v, b.v)}; }
 inline D2 vabs(D2 a) { return {_mm_andnot_pd(_mm_set1_pd(-0.0), a.v)}; }
 inline D2 gt(D2 a, D2 b) { return {_mm_cmpgt_pd(a.v, b.v)}; }
 inline D2 lt(D2 a, D2 b) { return {_mm_cmplt_pd(a.v, b.v)}; }
-inline D2 notGe(D2 a, D2 b) { return {_mm_cmpnge_pd(a.v, b.v)}; }  // true where a < b or either is NaN
-inline D2 notLe(D2 a, D2 b) { return {_mm_cmpnle_pd(a.v, b.v)}; }  // true where a > b or either is NaN
+inline D2 ge(D2 a, D2 b) { return {_mm_cmpge_pd(a.v, b.v)}; }
+inline D2 eq(D2 a, D2 b) { return {_mm_cmpeq_pd(a.v, b.v)}; }
+inline D2 notLe(D2 a, D2 b) { return {_mm_cmpnle_pd(a.v, b.v)}; }  // a > b or either NaN
 inline D2 operator&(D2 a, D2 b) { return {_mm_and_pd(a.v, b.v)}; }
 inline D2 operator|(D2 a, D2 b) { return {_mm_or_pd(a.v, b.v)}; }
 inline D2 operator~(D2 m) { return {_mm_xor_pd(m.v, _mm_castsi128_pd(_mm_set1_epi32(-1)))}; }
 /// m ? a : b per lane.
 inline D2 select(D2 m, D2 a, D2 b) { return {_mm_or_pd(_mm_and_pd(m.v, a.v), _mm_andnot_pd(m.v, b.v))}; }
-/// Bit 0: lane 0's mask, bit 1: lane 1's.
+/// a with its sign flipped where s is negative (a·sgn s).
+inline D2 flipSign(D2 a, D2 s) { return {_mm_xor_pd(a.v, _mm_and_pd(s.v, _mm_set1_pd(-0.0)))}; }
+/// Bit k: lane k's mask.
 inline int bits(D2 m) { return _mm_movemask_pd(m.v); }
-inline void store2(D2 a, double* out) { _mm_storeu_pd(out, a.v); }
 #else
 struct D2 {
+  static constexpr int lanes = 2;
   double v[2];
 };
 inline double maskOf(bool b) {
@@ -67,8 +102,13 @@ template <class F>
 inline D2 map2(D2 a, D2 b, F f) {
   return {{f(a.v[0], b.v[0]), f(a.v[1], b.v[1])}};
 }
-inline D2 set2(double lo, double hi) { return {{lo, hi}}; }
 inline D2 splat(double a) { return {{a, a}}; }
+inline D2 gather(const double* b, const int* i) { return {{b[i[0]], b[i[1]]}}; }
+inline D2 loadu(const double* p) { return {{p[0], p[1]}}; }
+inline void storeu(D2 a, double* out) {
+  out[0] = a.v[0];
+  out[1] = a.v[1];
+}
 inline D2 operator+(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x + y; }); }
 inline D2 operator-(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x - y; }); }
 inline D2 operator*(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x * y; }); }
@@ -78,147 +118,76 @@ inline D2 vmax(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x
 inline D2 vabs(D2 a) { return {{std::fabs(a.v[0]), std::fabs(a.v[1])}}; }
 inline D2 gt(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x > y); }); }
 inline D2 lt(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x < y); }); }
-inline D2 notGe(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(!(x >= y)); }); }
+inline D2 ge(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x >= y); }); }
+inline D2 eq(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x == y); }); }
 inline D2 notLe(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(!(x <= y)); }); }
 inline D2 operator&(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(isSet(x) && isSet(y)); }); }
 inline D2 operator|(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(isSet(x) || isSet(y)); }); }
 inline D2 operator~(D2 m) { return {{maskOf(!isSet(m.v[0])), maskOf(!isSet(m.v[1]))}}; }
 inline D2 select(D2 m, D2 a, D2 b) { return {{isSet(m.v[0]) ? a.v[0] : b.v[0], isSet(m.v[1]) ? a.v[1] : b.v[1]}}; }
+inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { return std::signbit(y) ? -x : x; }); }
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
-inline void store2(D2 a, double* out) {
-  out[0] = a.v[0];
-  out[1] = a.v[1];
-}
 #endif
 
-/// Finite lanes (false for ±inf and NaN).
-inline D2 finite(D2 x) { return lt(vabs(x), splat(std::numeric_limits<double>::infinity())); }
+namespace lanes2 {
+using Pack = D2;
+#include "simplex_batch_kernel.inc"
+}  // namespace lanes2
 
-struct V3 {
-  D2 x, y, z;
+// ------------------------------------------------------------------------------------------------ four lanes (AVX)
+
+#if MSK_BATCH_AVX
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx"))), apply_to = function)
+#else
+#pragma GCC push_options
+#pragma GCC target("avx")
+#endif
+namespace lanes4 {
+struct D4 {
+  static constexpr int lanes = 4;
+  __m256d v;
 };
-inline V3 operator-(const V3& a, const V3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline D2 dot(const V3& a, const V3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline V3 cross(const V3& a, const V3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+inline D4 splat(double a) { return {_mm256_set1_pd(a)}; }
+inline D4 gather(const double* b, const int* i) { return {_mm256_set_pd(b[i[3]], b[i[2]], b[i[1]], b[i[0]])}; }
+inline D4 loadu(const double* p) { return {_mm256_loadu_pd(p)}; }
+inline void storeu(D4 a, double* out) { _mm256_storeu_pd(out, a.v); }
+inline D4 operator+(D4 a, D4 b) { return {_mm256_add_pd(a.v, b.v)}; }
+inline D4 operator-(D4 a, D4 b) { return {_mm256_sub_pd(a.v, b.v)}; }
+inline D4 operator*(D4 a, D4 b) { return {_mm256_mul_pd(a.v, b.v)}; }
+inline D4 operator/(D4 a, D4 b) { return {_mm256_div_pd(a.v, b.v)}; }
+inline D4 vsqrt(D4 a) { return {_mm256_sqrt_pd(a.v)}; }
+inline D4 vmax(D4 a, D4 b) { return {_mm256_max_pd(a.v, b.v)}; }
+inline D4 vabs(D4 a) { return {_mm256_andnot_pd(_mm256_set1_pd(-0.0), a.v)}; }
+inline D4 gt(D4 a, D4 b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GT_OQ)}; }
+inline D4 lt(D4 a, D4 b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_LT_OQ)}; }
+inline D4 ge(D4 a, D4 b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_GE_OQ)}; }
+inline D4 eq(D4 a, D4 b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_EQ_OQ)}; }
+inline D4 notLe(D4 a, D4 b) { return {_mm256_cmp_pd(a.v, b.v, _CMP_NLE_UQ)}; }
+inline D4 operator&(D4 a, D4 b) { return {_mm256_and_pd(a.v, b.v)}; }
+inline D4 operator|(D4 a, D4 b) { return {_mm256_or_pd(a.v, b.v)}; }
+inline D4 operator~(D4 m) { return {_mm256_xor_pd(m.v, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)))}; }
+inline D4 select(D4 m, D4 a, D4 b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
+inline D4 flipSign(D4 a, D4 s) { return {_mm256_xor_pd(a.v, _mm256_and_pd(s.v, _mm256_set1_pd(-0.0)))}; }
+inline int bits(D4 m) { return _mm256_movemask_pd(m.v); }
+
+using Pack = D4;
+#include "simplex_batch_kernel.inc"
+}  // namespace lanes4
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+
+/// Whether this processor (and its operating system) runs AVX.
+bool avxAvailable() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx");
 }
-
-/// Positions of the solver's arrays seen from the set's first particle (Points is column-major: x, y, z columns).
-struct Coords {
-  double* x;
-  double* y;
-  double* z;
-  V3 load(int i, int j) const { return {set2(x[i], x[j]), set2(y[i], y[j]), set2(z[i], z[j])}; }
-};
-
-/// Inputs of two rows.
-struct RowPair {
-  V3 p, q0, q1, q2;   ///< P and its neighbours P1..P3, mm
-  D2 w, w0, w1, w2;   ///< inverse masses
-  D2 e0, e1, e2, hr;  ///< reference ε̃i and h̃ = h / r⊥
-};
-
-/// Outputs of two rows: Δλ = γ (P̃ − P) / W (mm) and the reaction weights λ, so ΔP = w Δλ and ΔPi = −wi λi Δλ.
-struct RowResult {
-  V3 dl;
-  D2 l0, l1, l2;
-  int kept;  ///< bit k set: lane k is a correction (not skipped)
-};
-
-/// The 2-simplex internal constraint of two rows (DESIGN-NOTES §2, method 2; thesis seed §4.8.1), the arithmetic of
-/// simplexShapeTarget() + simplexInternalCorrection() and of the Solver's row path (W = w + Σ ε̃i λi wi > 0, finite
-/// Δλ), rearranged to take one square root and three divisions per row and no branch on common data:
-/// - target P̃ = Σ ε̃i Pi + h̃ r⊥ n with r⊥ n = (la lb lc / 2A) x / A = √(la² lb² lc²) x / (2 |x|²), x = P1P2 × P1P3,
-///   skipped where !(|x| > 1e-12 max li²) or non-finite (the test done on squares);
-/// - λ'i ∝ μi (Cramer without the determinant): μ1 = PP2·(PP3×d), μ2 = −PP1·(PP3×d), μ3 = d·(PP1×PP2), d = P̃ − P;
-///   the torque-free split λ = μ/Σμ where |Σμ| > 0.05 Σ|μi|, pulled toward ε̃ so max|λi − ε̃i| ≤ 0.75, else λ = ε̃;
-///   back to λ = ε̃ where W < w + ½ Σ ε̃i² wi, W non-finite or max|λi| > 3.
-inline RowResult internalRows(const RowPair& in, double gamma) {
-  const V3 &p = in.p, &q0 = in.q0, &q1 = in.q1, &q2 = in.q2;
-  const V3 e1 = q1 - q0, e2 = q2 - q0, f = q1 - q2;
-  const V3 x = cross(e1, e2);
-  const D2 a2 = dot(x, x), la2 = dot(f, f), lb2 = dot(e2, e2), lc2 = dot(e1, e1);
-  const D2 s2 = vmax(la2, vmax(lb2, lc2));
-  const D2 frameOk = gt(a2, splat(1e-24) * s2 * s2) & finite(a2);
-  const D2 k = in.hr * vsqrt(la2 * lb2 * lc2) / (a2 + a2);
-  const V3 t = {in.e0 * q0.x + in.e1 * q1.x + in.e2 * q2.x + k * x.x,
-                in.e0 * q0.y + in.e1 * q1.y + in.e2 * q2.y + k * x.y,
-                in.e0 * q0.z + in.e1 * q1.z + in.e2 * q2.z + k * x.z};
-  const V3 d = t - p;  // finite iff the target and P are
-  D2 ok = frameOk & finite(d.x) & finite(d.y) & finite(d.z);
-  const D2 zero = splat(0.0);
-  ok = ok & (notLe(in.w, zero) | notLe(in.w0, zero) | notLe(in.w1, zero) | notLe(in.w2, zero));
-
-  const V3 a1 = q0 - p, a2v = q1 - p, a3 = q2 - p;
-  const V3 y = cross(a3, d), z = cross(a1, a2v);
-  const D2 mu0 = dot(a2v, y), mu1 = zero - dot(a1, y), mu2 = dot(d, z);
-  const D2 sum = mu0 + mu1 + mu2;
-  const D2 absSum = vabs(mu0) + vabs(mu1) + vabs(mu2);
-  const D2 split = gt(vabs(sum), splat(0.05) * absSum) & gt(vabs(sum), zero);
-  const D2 inv = splat(1.0) / sum;
-  D2 l0 = mu0 * inv, l1 = mu1 * inv, l2 = mu2 * inv;
-  const D2 dev = vmax(vabs(l0 - in.e0), vmax(vabs(l1 - in.e1), vabs(l2 - in.e2)));
-  const D2 far = split & gt(dev, splat(0.75));
-  if (bits(far)) {  // rare: pull λ toward ε̃
-    const D2 s = select(far, splat(0.75) / dev, splat(1.0));
-    l0 = in.e0 + s * (l0 - in.e0);
-    l1 = in.e1 + s * (l1 - in.e1);
-    l2 = in.e2 + s * (l2 - in.e2);
-  }
-  l0 = select(split, l0, in.e0);
-  l1 = select(split, l1, in.e1);
-  l2 = select(split, l2, in.e2);
-  const D2 c0 = in.e0 * in.w0, c1 = in.e1 * in.w1, c2 = in.e2 * in.w2;
-  const D2 plain = in.e0 * c0 + in.e1 * c1 + in.e2 * c2;
-  D2 den = in.w + in.e0 * l0 * in.w0 + in.e1 * l1 * in.w1 + in.e2 * l2 * in.w2;
-  const D2 lmax = vmax(vabs(l0), vmax(vabs(l1), vabs(l2)));
-  const D2 fallback = notGe(den, in.w + splat(0.5) * plain) | ~finite(den) | gt(lmax, splat(3.0));
-  l0 = select(fallback, in.e0, l0);
-  l1 = select(fallback, in.e1, l1);
-  l2 = select(fallback, in.e2, l2);
-  den = select(fallback, in.w + plain, den);
-  // The Solver's row test: W = w + Σ ε̃i λi wi (= den) positive and finite, and a finite Δλ.
-  ok = ok & gt(den, zero) & finite(den);
-  const D2 g = select(ok, splat(gamma) / den, zero);
-  RowResult r;
-  r.dl = {g * d.x, g * d.y, g * d.z};
-  ok = ok & finite(r.dl.x) & finite(r.dl.y) & finite(r.dl.z);
-  r.l0 = l0;
-  r.l1 = l1;
-  r.l2 = l2;
-  r.kept = bits(ok);
-  return r;
-}
-
-}  // namespace
-
-/// Inputs of stored rows r and s (s = r for a lone last row) from the solver's arrays.
-struct SimplexInternalBatch::Source {
-  Coords c;
-  const double* w;
-  const int *v, *n0, *n1, *n2;
-  const double *e0, *e1, *e2, *hr;
-
-  RowPair load(int r, int s) const {
-    RowPair in;
-    const int va = v[r], vb = v[s], a0 = n0[r], b0 = n0[s], a1 = n1[r], b1 = n1[s], a2 = n2[r], b2 = n2[s];
-    in.p = c.load(va, vb);
-    in.q0 = c.load(a0, b0);
-    in.q1 = c.load(a1, b1);
-    in.q2 = c.load(a2, b2);
-    in.w = set2(w[va], w[vb]);
-    in.w0 = set2(w[a0], w[b0]);
-    in.w1 = set2(w[a1], w[b1]);
-    in.w2 = set2(w[a2], w[b2]);
-    in.e0 = set2(e0[r], e0[s]);
-    in.e1 = set2(e1[r], e1[s]);
-    in.e2 = set2(e2[r], e2[s]);
-    in.hr = set2(hr[r], hr[s]);
-    return in;
-  }
-};
-
-namespace {
+#else
+bool avxAvailable() { return false; }
+#endif
 
 /// Circumradius and unit normal of triangle (a, b, c), as constraints.cpp computes them for the reference; false if
 /// degenerate.
@@ -293,68 +262,40 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     eps2_[k] = eps(v, 2);
     hr_[k] = hOverR[v];
   }
-  for (auto* a : {&qx_, &qy_, &qz_, &l0_, &l1_, &l2_}) a->assign(un, 0.0);
+  for (auto* a : {&dx_, &dy_, &dz_, &c0_, &c1_, &c2_, &c3_}) a->assign(un, 0.0);
   kept_.assign(un, 0);
+  wide_ = avxAvailable();
 }
+
+void SimplexInternalBatch::useWideLanes(bool on) { wide_ = on && avxAvailable(); }
 
 void SimplexInternalBatch::checkSizes(const Points& p, const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size() && w.size() == p.rows(),
              "simplex internal batch: size mismatch");
 }
 
-SimplexInternalBatch::Source SimplexInternalBatch::source(const Points& p, const Eigen::VectorXd& w) const {
-  // Points is column-major: the x, y and z columns are each contiguous.
-  double* base = const_cast<double*>(p.data());
+namespace {
+BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const std::vector<int>& v,
+                     const std::vector<int>& n0, const std::vector<int>& n1, const std::vector<int>& n2,
+                     const std::vector<double>& e0, const std::vector<double>& e1, const std::vector<double>& e2,
+                     const std::vector<double>& hr) {
+  double* base = const_cast<double*>(p.data());  // written only by the sweeps that take Points&
   const Eigen::Index rows = p.rows();
-  Source s;
-  s.c = Coords{base + first_, base + rows + first_, base + 2 * rows + first_};
-  s.w = w.data() + first_;
-  s.v = vertex_.data();
-  s.n0 = nb0_.data();
-  s.n1 = nb1_.data();
-  s.n2 = nb2_.data();
-  s.e0 = eps0_.data();
-  s.e1 = eps1_.data();
-  s.e2 = eps2_.data();
-  s.hr = hr_.data();
-  return s;
+  return BatchArrays{base + first,   base + rows + first, base + 2 * rows + first,
+                     w.data() + first, v.data(),           n0.data(),
+                     n1.data(),        n2.data(),          e0.data(),
+                     e1.data(),        e2.data(),          hr.data()};
 }
+}  // namespace
 
 int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const {
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const Source src = source(p, w);
-  const Coords& c = src.c;
-  int skipped = 0;
-  for (int r = begin; r < end; r += 2) {
-    const int s = r + 1 < end ? r + 1 : r;
-    const RowResult out = internalRows(src.load(r, s), gamma_);
-    double dx[2], dy[2], dz[2], l0[2], l1[2], l2[2];
-    store2(out.dl.x, dx);
-    store2(out.dl.y, dy);
-    store2(out.dl.z, dz);
-    store2(out.l0, l0);
-    store2(out.l1, l1);
-    store2(out.l2, l2);
-    const int lanes = s == r ? 1 : 2;
-    // Rows of one colour share no particle: applying the two lanes one after the other is the sequential order.
-    for (int k = 0; k < lanes; ++k) {
-      if (!(out.kept & (1 << k))) {
-        ++skipped;
-        continue;
-      }
-      const size_t row = static_cast<size_t>(r + k);
-      const int idx[4] = {vertex_[row], nb0_[row], nb1_[row], nb2_[row]};
-      const double react[4] = {1.0, -l0[k], -l1[k], -l2[k]};
-      for (int j = 0; j < 4; ++j) {
-        const double a = src.w[idx[j]] * react[j];
-        c.x[idx[j]] += a * dx[k];
-        c.y[idx[j]] += a * dy[k];
-        c.z[idx[j]] += a * dz[k];
-      }
-    }
-  }
-  return skipped;
+  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+#if MSK_BATCH_AVX
+  if (wide_) return lanes4::projectRows(a, gamma_, begin, end);
+#endif
+  return lanes2::projectRows(a, gamma_, begin, end);
 }
 
 int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) const {
@@ -366,32 +307,12 @@ int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) con
 int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const Source src = source(p, w);
-  int skipped = 0;
-  for (int r = begin; r < end; r += 2) {
-    const int s = r + 1 < end ? r + 1 : r;
-    const RowResult out = internalRows(src.load(r, s), gamma_);
-    double t[6][2];
-    store2(out.dl.x, t[0]);
-    store2(out.dl.y, t[1]);
-    store2(out.dl.z, t[2]);
-    store2(out.l0, t[3]);
-    store2(out.l1, t[4]);
-    store2(out.l2, t[5]);
-    const int lanes = s == r ? 1 : 2;
-    for (int k = 0; k < lanes; ++k) {
-      const size_t row = static_cast<size_t>(r + k);
-      qx_[row] = t[0][k];
-      qy_[row] = t[1][k];
-      qz_[row] = t[2][k];
-      l0_[row] = t[3][k];
-      l1_[row] = t[4][k];
-      l2_[row] = t[5][k];
-      kept_[row] = static_cast<std::uint8_t>((out.kept >> k) & 1);
-      skipped += 1 - kept_[row];
-    }
-  }
-  return skipped;
+  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c0_.data(), c1_.data(), c2_.data(), c3_.data(), kept_.data()};
+#if MSK_BATCH_AVX
+  if (wide_) return lanes4::computeRows(a, gamma_, begin, end, o);
+#endif
+  return lanes2::computeRows(a, gamma_, begin, end, o);
 }
 
 void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& counts) const {
@@ -410,8 +331,7 @@ void SimplexInternalBatch::applyRange(Points& p, const Eigen::VectorXd& w, const
   checkSizes(p, w);
   MSK_ASSERT(counts.size() == w.size(), "simplex internal batch: size mismatch");
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const Source src = source(p, w);
-  const Coords& c = src.c;
+  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
   const int* cnt = counts.data() + first_;
   for (int r = begin; r < end; ++r) {
     const size_t ur = static_cast<size_t>(r);
@@ -419,12 +339,12 @@ void SimplexInternalBatch::applyRange(Points& p, const Eigen::VectorXd& w, const
     const int idx[4] = {vertex_[ur], nb0_[ur], nb1_[ur], nb2_[ur]};
     const int most = std::max(std::max(1, std::max(cnt[idx[0]], cnt[idx[1]])), std::max(cnt[idx[2]], cnt[idx[3]]));
     const double scale = omega / most;
-    const double react[4] = {1.0, -l0_[ur], -l1_[ur], -l2_[ur]};
+    const double cf[4] = {c0_[ur], c1_[ur], c2_[ur], c3_[ur]};
     for (int j = 0; j < 4; ++j) {
-      const double a = scale * src.w[idx[j]] * react[j];
-      c.x[idx[j]] += a * qx_[ur];
-      c.y[idx[j]] += a * qy_[ur];
-      c.z[idx[j]] += a * qz_[ur];
+      const double s = scale * a.w[idx[j]] * cf[j];
+      a.x[idx[j]] += s * dx_[ur];
+      a.y[idx[j]] += s * dy_[ur];
+      a.z[idx[j]] += s * dz_[ur];
     }
   }
 }

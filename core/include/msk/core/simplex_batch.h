@@ -1,7 +1,8 @@
 #pragma once
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
 /// struct of arrays in coloured order, and Jacobi and coloured Gauss–Seidel sweeps over it without virtual calls or
-/// per-row allocation, two rows at a time (SSE2 doubles where available). The sweeps give the corrections of the
+/// per-row allocation, four rows at a time with AVX where the processor has it (chosen at run time; the build flags
+/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the
 /// Solver's per-row path (solver.h, ConstraintRow of simplexInternalCorrection(), same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
@@ -40,6 +41,11 @@ class SimplexInternalBatch {
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
   /// First stored row of colour k (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
+  /// Four rows at a time with AVX where the processor has it (the default), or two (SSE2) with `on` = false. Both
+  /// give the per-row path's corrections up to rounding, but not bitwise the same ones.
+  void useWideLanes(bool on);
+  /// Whether the sweeps run four rows at a time.
+  bool wideLanes() const { return wide_; }
   /// Vertex (local index) of stored row r.
   int vertexOfRow(int r) const { return vertex_[static_cast<size_t>(r)]; }
 
@@ -63,17 +69,16 @@ class SimplexInternalBatch {
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
  private:
-  struct Source;  ///< the arrays one sweep reads (simplex_batch.cpp)
   void checkSizes(const Points& p, const Eigen::VectorXd& w) const;
-  Source source(const Points& p, const Eigen::VectorXd& w) const;
+  bool wide_ = false;
   int first_ = 0;
   double gamma_;
   std::vector<int> colourStart_;            ///< #colours + 1 offsets into the stored rows
   std::vector<int> vertex_, nb0_, nb1_, nb2_;  ///< local indices of each stored row's vertex and its neighbours
   std::vector<double> eps0_, eps1_, eps2_;  ///< reference ε̃i
   std::vector<double> hr_;                  ///< reference h̃ = h / r⊥ (scale-free height)
-  // Jacobi corrections of the last computeRange(): Δλ = γ (P̃ − P) / W and the reaction weights λ of each row.
-  std::vector<double> qx_, qy_, qz_, l0_, l1_, l2_;
+  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = wj cj d (before ω).
+  std::vector<double> dx_, dy_, dz_, c0_, c1_, c2_, c3_;
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
 };
