@@ -34,15 +34,15 @@ namespace {
 #endif
 
 /// The arrays one sweep reads and writes: positions and inverse masses seen from the set's first particle (Points is
-/// column-major, so x, y and z are each contiguous), and the stored rows.
+/// column-major, so x, y and z are each contiguous), the rows (one per vertex, in vertex order) and the colour order.
 struct BatchArrays {
   double *x, *y, *z;
   const double* w;
-  const int *v, *n0, *n1, *n2;
+  const int *order, *n0, *n1, *n2;
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction.
+/// Where computeRows() writes each row's Jacobi correction: d and the coefficients cj (inverse masses included).
 struct JacobiOut {
   double *dx, *dy, *dz, *c0, *c1, *c2, *c3;
   std::uint8_t* kept;
@@ -234,7 +234,7 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     eps.row(v) << 1.0 - b1 - b2, b1, b2;
     hOverR[v] = h / r;
   }
-  // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours), rows stored in it.
+  // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours).
   const Colouring col = colourConstraints(n, 4, [&nb](int r, int* out) {
     out[0] = r;
     for (int j = 0; j < 3; ++j) out[j + 1] = nb(r, j);
@@ -242,8 +242,8 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
   });
   colourStart_ = col.start;
   if (colourStart_.empty()) colourStart_.push_back(0);
+  order_ = col.order;
   const size_t un = static_cast<size_t>(n);
-  vertex_.resize(un);
   nb0_.resize(un);
   nb1_.resize(un);
   nb2_.resize(un);
@@ -251,9 +251,8 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
   eps1_.resize(un);
   eps2_.resize(un);
   hr_.resize(un);
-  for (size_t k = 0; k < un; ++k) {
-    const int v = col.order[k];
-    vertex_[k] = v;
+  for (int v = 0; v < n; ++v) {
+    const size_t k = static_cast<size_t>(v);
     nb0_[k] = nb(v, 0);
     nb1_[k] = nb(v, 1);
     nb2_[k] = nb(v, 2);
@@ -275,14 +274,14 @@ void SimplexInternalBatch::checkSizes(const Points& p, const Eigen::VectorXd& w)
 }
 
 namespace {
-BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const std::vector<int>& v,
+BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const std::vector<int>& order,
                      const std::vector<int>& n0, const std::vector<int>& n1, const std::vector<int>& n2,
                      const std::vector<double>& e0, const std::vector<double>& e1, const std::vector<double>& e2,
                      const std::vector<double>& hr) {
   double* base = const_cast<double*>(p.data());  // written only by the sweeps that take Points&
   const Eigen::Index rows = p.rows();
   return BatchArrays{base + first,   base + rows + first, base + 2 * rows + first,
-                     w.data() + first, v.data(),           n0.data(),
+                     w.data() + first, order.data(),       n0.data(),
                      n1.data(),        n2.data(),          e0.data(),
                      e1.data(),        e2.data(),          hr.data()};
 }
@@ -291,7 +290,7 @@ BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const
 int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const {
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
 #if MSK_BATCH_AVX
   if (wide_) return lanes4::projectRows(a, gamma_, begin, end);
 #endif
@@ -307,7 +306,7 @@ int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) con
 int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
   const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c0_.data(), c1_.data(), c2_.data(), c3_.data(), kept_.data()};
 #if MSK_BATCH_AVX
   if (wide_) return lanes4::computeRows(a, gamma_, begin, end, o);
@@ -319,41 +318,54 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
   MSK_ASSERT(counts.size() == w.size() && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
   const double* wv = w.data() + first_;
   int* cnt = counts.data() + first_;
-  for (size_t r = 0; r < vertex_.size(); ++r) {
+  for (size_t r = 0; r < kept_.size(); ++r) {
     if (!kept_[r]) continue;
-    const int idx[4] = {vertex_[r], nb0_[r], nb1_[r], nb2_[r]};
+    const int idx[4] = {static_cast<int>(r), nb0_[r], nb1_[r], nb2_[r]};
     for (int j = 0; j < 4; ++j) cnt[idx[j]] += wv[idx[j]] > 0 ? 1 : 0;
+  }
+}
+
+void SimplexInternalBatch::applyRows(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega,
+                                     int begin, int end, bool colourOrder) const {
+  checkSizes(p, w);
+  MSK_ASSERT(counts.size() == w.size(), "simplex internal batch: size mismatch");
+  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
+  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const int* cnt = counts.data() + first_;
+  // ω / m for the usual counts m (a closed 2-simplex mesh alone gives 4), a division beyond.
+  double share[9];
+  for (int m = 0; m < 9; ++m) share[m] = omega / std::max(m, 1);
+  for (int i = begin; i < end; ++i) {
+    const size_t r = static_cast<size_t>(colourOrder ? order_[static_cast<size_t>(i)] : i);
+    if (!kept_[r]) continue;
+    const int idx[4] = {static_cast<int>(r), nb0_[r], nb1_[r], nb2_[r]};
+    const int most = std::max(std::max(cnt[idx[0]], cnt[idx[1]]), std::max(cnt[idx[2]], cnt[idx[3]]));
+    const double scale = most < 9 ? share[most] : omega / most;
+    const double cf[4] = {c0_[r], c1_[r], c2_[r], c3_[r]};
+    const double dx = scale * dx_[r], dy = scale * dy_[r], dz = scale * dz_[r];
+    for (int j = 0; j < 4; ++j) {
+      a.x[idx[j]] += cf[j] * dx;
+      a.y[idx[j]] += cf[j] * dy;
+      a.z[idx[j]] += cf[j] * dz;
+    }
   }
 }
 
 void SimplexInternalBatch::applyRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts,
                                       double omega, int begin, int end) const {
-  checkSizes(p, w);
-  MSK_ASSERT(counts.size() == w.size(), "simplex internal batch: size mismatch");
-  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, vertex_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
-  const int* cnt = counts.data() + first_;
-  for (int r = begin; r < end; ++r) {
-    const size_t ur = static_cast<size_t>(r);
-    if (!kept_[ur]) continue;
-    const int idx[4] = {vertex_[ur], nb0_[ur], nb1_[ur], nb2_[ur]};
-    const int most = std::max(std::max(1, std::max(cnt[idx[0]], cnt[idx[1]])), std::max(cnt[idx[2]], cnt[idx[3]]));
-    const double scale = omega / most;
-    const double cf[4] = {c0_[ur], c1_[ur], c2_[ur], c3_[ur]};
-    for (int j = 0; j < 4; ++j) {
-      const double s = scale * a.w[idx[j]] * cf[j];
-      a.x[idx[j]] += s * dx_[ur];
-      a.y[idx[j]] += s * dy_[ur];
-      a.z[idx[j]] += s * dz_[ur];
-    }
-  }
+  applyRows(p, w, counts, omega, begin, end, false);
+}
+
+void SimplexInternalBatch::applyColourRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts,
+                                            double omega, int begin, int end) const {
+  applyRows(p, w, counts, omega, begin, end, true);
 }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   const int skipped = computeRange(p, w, 0, size());
   ownCounts_.setZero(w.size());
   addCounts(w, ownCounts_);
-  for (int k = 0; k < colours(); ++k) applyRange(p, w, ownCounts_, omega, colourBegin(k), colourBegin(k + 1));
+  applyRange(p, w, ownCounts_, omega, 0, size());
   return skipped;
 }
 

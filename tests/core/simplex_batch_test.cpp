@@ -104,12 +104,15 @@ TEST_P(SimplexBatchAgreement, ColouredSweepsMatchTheSolver) {
   const Case c = GetParam();
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 11);
   const Points expected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 3, c.gamma, 1.0);
-  msk::SimplexInternalBatch batch(pr.reference, c.gamma);
-  batch.setFirstParticle(pr.offset);
-  Points p = pr.p0;
-  for (int it = 0; it < 3; ++it) batch.colouredSweep(p, pr.w);
-  EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12);
-  EXPECT_TRUE(p.topRows(pr.offset) == pr.p0.topRows(pr.offset));  // particles outside the set untouched
+  for (bool wide : {false, true}) {  // two lanes (SSE2) and four (AVX, where the processor has it)
+    msk::SimplexInternalBatch batch(pr.reference, c.gamma);
+    batch.setFirstParticle(pr.offset);
+    batch.useWideLanes(wide);
+    Points p = pr.p0;
+    for (int it = 0; it < 3; ++it) batch.colouredSweep(p, pr.w);
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_TRUE(p.topRows(pr.offset) == pr.p0.topRows(pr.offset));  // particles outside the set untouched
+  }
 }
 
 TEST_P(SimplexBatchAgreement, JacobiSweepsMatchTheSolver) {
@@ -117,23 +120,29 @@ TEST_P(SimplexBatchAgreement, JacobiSweepsMatchTheSolver) {
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 12);
   const double omega = 1.5;
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 3, c.gamma, omega);
-  msk::SimplexInternalBatch batch(pr.reference, c.gamma);
-  batch.setFirstParticle(pr.offset);
-  Points p = pr.p0;
-  for (int it = 0; it < 3; ++it) batch.jacobiSweep(p, pr.w, omega);
-  EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12);
+  for (bool wide : {false, true}) {
+    msk::SimplexInternalBatch batch(pr.reference, c.gamma);
+    batch.setFirstParticle(pr.offset);
+    batch.useWideLanes(wide);
+    Points p = pr.p0;
+    for (int it = 0; it < 3; ++it) batch.jacobiSweep(p, pr.w, omega);
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+  }
 }
 
 TEST_P(SimplexBatchAgreement, SkipsTheRowsThePerRowPathSkips) {
   const Case c = GetParam();
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 13);
-  msk::SimplexInternalBatch batch(pr.reference, c.gamma);
-  batch.setFirstParticle(pr.offset);
   const int expected = rowPathSkips(pr, c.gamma);
   EXPECT_GE(expected, 2);  // the fixed neighbourhood and the degenerate one at least
-  EXPECT_EQ(batch.computeRange(pr.p0, pr.w, 0, batch.size()), expected);
-  Points p = pr.p0;
-  EXPECT_GE(batch.colouredSweep(p, pr.w), 1);  // the fixed neighbourhood stays fixed
+  for (bool wide : {false, true}) {
+    msk::SimplexInternalBatch batch(pr.reference, c.gamma);
+    batch.setFirstParticle(pr.offset);
+    batch.useWideLanes(wide);
+    EXPECT_EQ(batch.computeRange(pr.p0, pr.w, 0, batch.size()), expected);
+    Points p = pr.p0;
+    EXPECT_GE(batch.colouredSweep(p, pr.w), 1);  // the fixed neighbourhood stays fixed
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Spheres, SimplexBatchAgreement,
@@ -150,7 +159,7 @@ TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {
   for (int k = 0; k < batch.colours(); ++k) {
     std::vector<int> used(static_cast<size_t>(m.vertexCount()), 0);
     for (int r = batch.colourBegin(k); r < batch.colourBegin(k + 1); ++r) {
-      const int v = batch.vertexOfRow(r);
+      const int v = batch.colourOrder(r);
       ++seen[static_cast<size_t>(v)];
       for (int j : {v, m.neighbors(v, 0), m.neighbors(v, 1), m.neighbors(v, 2)}) {
         EXPECT_EQ(used[static_cast<size_t>(j)], 0) << "colour " << k << " particle " << j;

@@ -1,16 +1,19 @@
 #pragma once
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
-/// struct of arrays in coloured order, and Jacobi and coloured Gauss–Seidel sweeps over it without virtual calls or
-/// per-row allocation, four rows at a time with AVX where the processor has it (chosen at run time; the build flags
-/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the
-/// Solver's per-row path (solver.h, ConstraintRow of simplexInternalCorrection(), same skip rules) up to rounding.
+/// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
+/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, four rows at a time with AVX where the
+/// processor has it (chosen at run time; the build flags stay baseline), else two (SSE2 doubles, or plain scalars off
+/// x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
+/// SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
-///   SimplexInternalBatch b(reference, gamma);   b.setFirstParticle(first);   // once per set
-///   coloured:  for each colour k: b.projectRange(p, w, b.colourBegin(k), b.colourBegin(k + 1))  (split the range
-///              over threads: rows of one colour share no particle)
-///   Jacobi:    b.computeRange(p, w, 0, b.size()) (any split), then b.addCounts(w, counts) (serial, with the other
-///              sets' counts), then b.applyRange(p, w, counts, omega, colourBegin(k), colourBegin(k + 1)) per colour.
+///   SimplexInternalBatch b(reference, gamma);  b.setFirstParticle(first);     // once per set
+///   coloured:  for each colour k: b.projectRange(p, w, b.colourBegin(k), b.colourBegin(k + 1))  (a colour's range
+///              may be split over threads: its rows share no particle)
+///   Jacobi:    b.computeRange(p, w, begin, end) over [0, size()) (any split over threads), then
+///              b.addCounts(w, counts) (serial, adding to the other sets' counts), then after every set is counted
+///              b.applyColourRange(p, w, counts, omega, colourBegin(k), colourBegin(k + 1)) colour by colour (split
+///              over threads), or b.applyRange(p, w, counts, omega, 0, size()) on one thread.
 #include <cstdint>
 #include <vector>
 
@@ -21,8 +24,8 @@
 
 namespace msk {
 
-/// 2-simplex internal constraints (DESIGN-NOTES §2, method 2; shape memory P̃ = Σ ε̃i Pi + h̃ r⊥ n) as a batch. Rows are
-/// stored colour by colour (the colouring the Solver computes for the same set), lengths in mm, inverse masses w ≥ 0.
+/// 2-simplex internal constraints (DESIGN-NOTES §2, method 2; shape memory P̃ = Σ ε̃i Pi + h̃ r⊥ n) as a batch: one row
+/// per vertex, the colouring the Solver computes for the same set; lengths in mm, inverse masses w ≥ 0.
 class SimplexInternalBatch {
  public:
   /// Reference parameters ε̃, h̃ = h / r⊥ of `reference` computed as SimplexInternalConstraints does; γ ∈ [0, 1]
@@ -30,7 +33,7 @@ class SimplexInternalBatch {
   SimplexInternalBatch(const SimplexMesh& reference, double gamma);
 
   /// Number of rows (one per vertex).
-  int size() const { return static_cast<int>(vertex_.size()); }
+  int size() const { return static_cast<int>(order_.size()); }
   /// Index of the set's first particle in the solver's arrays.
   void setFirstParticle(int first) { first_ = first; }
   /// See setFirstParticle().
@@ -39,32 +42,35 @@ class SimplexInternalBatch {
   double gamma() const { return gamma_; }
   /// Number of colours.
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
-  /// First stored row of colour k (k = colours() gives size()).
+  /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
   /// Four rows at a time with AVX where the processor has it (the default), or two (SSE2) with `on` = false. Both
   /// give the per-row path's corrections up to rounding, but not bitwise the same ones.
   void useWideLanes(bool on);
   /// Whether the sweeps run four rows at a time.
   bool wideLanes() const { return wide_; }
-  /// Vertex (local index) of stored row r.
-  int vertexOfRow(int r) const { return vertex_[static_cast<size_t>(r)]; }
+  /// Vertex (local index) at position i of the colour order.
+  int colourOrder(int i) const { return order_[static_cast<size_t>(i)]; }
 
-  /// Coloured Gauss–Seidel on stored rows [begin, end) of one colour: each row's PBD correction at `p` applied at once
-  /// (ΔPj = wj rj Δλ, Δλ = γ (P̃ − P) / W). `p` (#N×3, mm) and `w` (#N) are the solver's whole arrays. Returns the
-  /// number of rows skipped (degenerate or every particle fixed).
+  /// Coloured Gauss–Seidel on positions [begin, end) of the colour order, within one colour: each row's PBD correction
+  /// at `p` applied at once (ΔPj = wj rj Δλ, Δλ = γ (P̃ − P) / W). `p` (#N×3, mm) and `w` (#N) are the solver's whole
+  /// arrays. Returns the number of rows skipped (degenerate or every particle fixed).
   int projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const;
   /// One coloured Gauss–Seidel sweep over every row, colour by colour; returns the rows skipped.
   int colouredSweep(Points& p, const Eigen::VectorXd& w) const;
 
-  /// Jacobi, first half: the corrections of stored rows [begin, end) at positions `p`, kept for applyRange(). Rows of
-  /// different ranges may be computed at the same time. Returns the rows skipped.
+  /// Jacobi, first half: the corrections of rows (vertices) [begin, end) at positions `p`, kept for the apply step.
+  /// Disjoint ranges may be computed at the same time. Returns the rows skipped.
   int computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end);
   /// Jacobi, counting: counts[j] += 1 for every free particle j (w > 0) of every row kept by computeRange().
   void addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& counts) const;
-  /// Jacobi, second half, on stored rows [begin, end) of one colour: each kept correction scaled by ω / (largest count
-  /// at one of its row's particles, at least 1), as Solver's weighted-sum Jacobi does.
+  /// Jacobi, second half, on rows (vertices) [begin, end), one thread: each kept correction scaled by ω / (largest
+  /// count at one of its row's particles, at least 1), as Solver's weighted-sum Jacobi does.
   void applyRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin,
                   int end) const;
+  /// As applyRange() on positions [begin, end) of the colour order, within one colour (safe to split over threads).
+  void applyColourRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin,
+                        int end) const;
   /// One Jacobi iteration of this set alone (counts from its own rows), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
@@ -73,11 +79,14 @@ class SimplexInternalBatch {
   bool wide_ = false;
   int first_ = 0;
   double gamma_;
-  std::vector<int> colourStart_;            ///< #colours + 1 offsets into the stored rows
-  std::vector<int> vertex_, nb0_, nb1_, nb2_;  ///< local indices of each stored row's vertex and its neighbours
+  void applyRows(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin, int end,
+                 bool colourOrder) const;
+  std::vector<int> colourStart_;            ///< #colours + 1 offsets into order_
+  std::vector<int> order_;                  ///< rows (vertices, local indices) colour by colour
+  std::vector<int> nb0_, nb1_, nb2_;        ///< each vertex's neighbours (local indices)
   std::vector<double> eps0_, eps1_, eps2_;  ///< reference ε̃i
   std::vector<double> hr_;                  ///< reference h̃ = h / r⊥ (scale-free height)
-  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = wj cj d (before ω).
+  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = cj d (before ω).
   std::vector<double> dx_, dy_, dz_, c0_, c1_, c2_, c3_;
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
