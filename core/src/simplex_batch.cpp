@@ -129,6 +129,63 @@ inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { retu
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
 #endif
 
+/// Circumradius and unit normal (b−a)×(c−a)/|…| of triangle (a, b, c), as constraints.cpp computes them; false if
+/// degenerate.
+bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
+                    Eigen::Vector3d& normal) {
+  const Eigen::Vector3d x = (b - a).cross(c - a);
+  const double twiceArea = x.norm();
+  const double la = (b - c).norm(), lb = (c - a).norm(), lc = (a - b).norm();
+  const double scale = std::max({la, lb, lc});
+  if (!(twiceArea > 1e-12 * scale * scale) || !std::isfinite(twiceArea)) return false;
+  radius = la * lb * lc / (2.0 * twiceArea);
+  normal = x / twiceArea;
+  return true;
+}
+
+
+/// One row by the literal formulas of simplexShapeTarget() + simplexInternalCorrection() (constraints.cpp) and the
+/// Solver's row test (W > 0 and finite, finite Δλ): the kernels' rare branch. Writes d = P̃ − P (mm) and the
+/// coefficients cj, inverse masses included (ΔPj = cj d), to out[0..6]; false if the row is skipped.
+bool literalRow(const BatchArrays& a, int v, double gamma, double out[7]) {
+  const int idx[4] = {v, a.n0[v], a.n1[v], a.n2[v]};
+  Eigen::Vector3d pt[4];
+  for (int j = 0; j < 4; ++j) pt[j] = Eigen::Vector3d(a.x[idx[j]], a.y[idx[j]], a.z[idx[j]]);
+  const double w = a.w[v], wi[3] = {a.w[idx[1]], a.w[idx[2]], a.w[idx[3]]};
+  const double eps[3] = {a.e0[v], a.e1[v], a.e2[v]};
+  double radius = 0;
+  Eigen::Vector3d n;
+  if (!triangleFrame(pt[1], pt[2], pt[3], radius, n)) return false;
+  const Eigen::Vector3d target = eps[0] * pt[1] + eps[1] * pt[2] + eps[2] * pt[3] + a.hr[v] * radius * n;
+  if (!target.allFinite()) return false;
+  const Eigen::Vector3d d = target - pt[0];
+  if (!d.allFinite()) return false;
+  if (w <= 0 && wi[0] <= 0 && wi[1] <= 0 && wi[2] <= 0) return false;
+  const Eigen::Vector3d a1 = pt[1] - pt[0], a2 = pt[2] - pt[0], a3 = pt[3] - pt[0];
+  const Eigen::Vector3d mu(d.dot(a2.cross(a3)), d.dot(a3.cross(a1)), d.dot(a1.cross(a2)));
+  const double sumMu = mu.sum();
+  const Eigen::Vector3d epsV(eps[0], eps[1], eps[2]);
+  Eigen::Vector3d lambda = epsV;
+  if (std::fabs(sumMu) > 0.05 * mu.cwiseAbs().sum() && std::fabs(sumMu) > 0) {
+    lambda = mu / sumMu;
+    const double deviation = (lambda - epsV).cwiseAbs().maxCoeff();
+    if (deviation > 0.75) lambda = epsV + (0.75 / deviation) * (lambda - epsV);
+  }
+  const double plain = eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
+  double denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
+  if (!(denom >= w + 0.5 * plain) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
+    lambda = epsV;
+    denom = w + plain;
+  }
+  if (!(denom > 0) || !std::isfinite(denom)) return false;
+  const double g = gamma / denom;
+  if (!(g * d).allFinite()) return false;
+  for (int c = 0; c < 3; ++c) out[c] = d[c];
+  out[3] = w * g;
+  for (int i = 0; i < 3; ++i) out[4 + i] = -wi[i] * lambda[i] * g;
+  return true;
+}
+
 namespace lanes2 {
 using Pack = D2;
 #include "simplex_batch_kernel.inc"
@@ -189,20 +246,6 @@ bool avxAvailable() {
 bool avxAvailable() { return false; }
 #endif
 
-/// Circumradius and unit normal of triangle (a, b, c), as constraints.cpp computes them for the reference; false if
-/// degenerate.
-bool referenceFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
-                    Eigen::Vector3d& normal) {
-  const Eigen::Vector3d x = (b - a).cross(c - a);
-  const double twiceArea = x.norm();
-  const double la = (b - c).norm(), lb = (c - a).norm(), lc = (a - b).norm();
-  const double scale = std::max({la, lb, lc});
-  if (!(twiceArea > 1e-12 * scale * scale) || !std::isfinite(twiceArea)) return false;
-  radius = la * lb * lc / (2.0 * twiceArea);
-  normal = x / twiceArea;
-  return true;
-}
-
 }  // namespace
 
 SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double gamma) : gamma_(gamma) {
@@ -220,7 +263,7 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     const Eigen::Vector3d p = reference.positions.row(v);
     double r = 0;
     Eigen::Vector3d nrm;
-    if (!referenceFrame(pi[0], pi[1], pi[2], r, nrm)) {
+    if (!triangleFrame(pi[0], pi[1], pi[2], r, nrm)) {
       eps.row(v).setConstant(1.0 / 3.0);
       hOverR[v] = 0;
       continue;
