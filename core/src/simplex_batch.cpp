@@ -48,6 +48,13 @@ struct JacobiOut {
   std::uint8_t* kept;
 };
 
+/// What the per-particle Jacobi apply reads: for particle v, entries 4v .. 4v + 3 name a row touching it (`row`) and
+/// the place of its coefficient in `c` (slot·n + row).
+struct JacobiView {
+  const int *flat, *row;
+  const double *c, *scale, *dx, *dy, *dz;
+};
+
 // ------------------------------------------------------------------------------------------------ two lanes
 
 // Two doubles processed together: SSE2 registers on x86-64 (part of the baseline, no -march needed), a pair of
@@ -304,7 +311,28 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     eps2_[k] = eps(v, 2);
     hr_[k] = hOverR[v];
   }
-  for (auto* a : {&dx_, &dy_, &dz_, &c0_, &c1_, &c2_, &c3_}) a->assign(un, 0.0);
+  for (auto* a : {&dx_, &dy_, &dz_}) a->assign(un, 0.0);
+  c_.assign(4 * un, 0.0);
+  scale_.assign(un, 0.0);
+  // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
+  revStart_.assign(un + 1, 0);
+  for (int v = 0; v < n; ++v) {
+    ++revStart_[static_cast<size_t>(v) + 1];
+    for (int j = 0; j < 3; ++j) ++revStart_[static_cast<size_t>(nb(v, j)) + 1];
+  }
+  for (size_t v = 0; v < un; ++v) revStart_[v + 1] += revStart_[v];
+  revFlat_.resize(static_cast<size_t>(revStart_[un]));
+  revRow_.resize(revFlat_.size());
+  std::vector<int> fill(revStart_.begin(), revStart_.end() - 1);
+  for (int v = 0; v < n; ++v)
+    for (int slot = 0; slot < 4; ++slot) {
+      const int j = slot == 0 ? v : nb(v, slot - 1);
+      const size_t at = static_cast<size_t>(fill[static_cast<size_t>(j)]++);
+      revFlat_[at] = slot * n + v;
+      revRow_[at] = v;
+    }
+  uniform4_ = true;
+  for (size_t v = 0; v < un; ++v) uniform4_ = uniform4_ && revStart_[v + 1] - revStart_[v] == 4;
   kept_.assign(un, 0);
   wide_ = avxAvailable();
 }
@@ -350,7 +378,9 @@ int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
   const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
-  const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c0_.data(), c1_.data(), c2_.data(), c3_.data(), kept_.data()};
+  const size_t n = order_.size();
+  double* c = c_.data();
+  const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
 #if MSK_BATCH_AVX
   if (wide_) return lanes4::computeRows(a, gamma_, begin, end, o);
 #endif
@@ -358,57 +388,85 @@ int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w
 }
 
 void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& counts) const {
-  MSK_ASSERT(counts.size() == w.size() && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
+  MSK_ASSERT(counts.size() == w.size() && first_ >= 0 && w.size() >= first_ + size(),
+             "simplex internal batch: size mismatch");
   const double* wv = w.data() + first_;
   int* cnt = counts.data() + first_;
-  for (size_t r = 0; r < kept_.size(); ++r) {
-    if (!kept_[r]) continue;
-    const int idx[4] = {static_cast<int>(r), nb0_[r], nb1_[r], nb2_[r]};
-    for (int j = 0; j < 4; ++j) cnt[idx[j]] += wv[idx[j]] > 0 ? 1 : 0;
+  const std::uint8_t* kept = kept_.data();
+  const int* row = revRow_.data();
+  if (uniform4_) {
+    for (int v = 0; v < size(); ++v) {
+      const int* e = row + 4 * v;
+      const int k = kept[e[0]] + kept[e[1]] + kept[e[2]] + kept[e[3]];
+      cnt[v] += wv[v] > 0 ? k : 0;
+    }
+    return;
+  }
+  for (int v = 0; v < size(); ++v) {
+    if (!(wv[v] > 0)) continue;
+    int k = 0;
+    for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e)
+      k += kept[row[e]];
+    cnt[v] += k;
   }
 }
 
-void SimplexInternalBatch::applyRows(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega,
-                                     int begin, int end, bool colourOrder) const {
-  checkSizes(p, w);
-  MSK_ASSERT(counts.size() == w.size(), "simplex internal batch: size mismatch");
+void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omega, int begin, int end) {
+  MSK_ASSERT(first_ >= 0 && counts.size() >= first_ + size(), "simplex internal batch: size mismatch");
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
   const int* cnt = counts.data() + first_;
   // ω / m for the usual counts m (a closed 2-simplex mesh alone gives 4), a division beyond.
   double share[9];
   for (int m = 0; m < 9; ++m) share[m] = omega / std::max(m, 1);
-  for (int i = begin; i < end; ++i) {
-    const size_t r = static_cast<size_t>(colourOrder ? order_[static_cast<size_t>(i)] : i);
-    if (!kept_[r]) continue;
-    const int idx[4] = {static_cast<int>(r), nb0_[r], nb1_[r], nb2_[r]};
-    const int most = std::max(std::max(cnt[idx[0]], cnt[idx[1]]), std::max(cnt[idx[2]], cnt[idx[3]]));
-    const double scale = most < 9 ? share[most] : omega / most;
-    const double cf[4] = {c0_[r], c1_[r], c2_[r], c3_[r]};
-    const double dx = scale * dx_[r], dy = scale * dy_[r], dz = scale * dz_[r];
-    for (int j = 0; j < 4; ++j) {
-      a.x[idx[j]] += cf[j] * dx;
-      a.y[idx[j]] += cf[j] * dy;
-      a.z[idx[j]] += cf[j] * dz;
-    }
+  for (int v = begin; v < end; ++v) {
+    const size_t r = static_cast<size_t>(v);
+    const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
+    scale_[r] = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
   }
 }
 
-void SimplexInternalBatch::applyRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts,
-                                      double omega, int begin, int end) const {
-  applyRows(p, w, counts, omega, begin, end, false);
-}
-
-void SimplexInternalBatch::applyColourRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts,
-                                            double omega, int begin, int end) const {
-  applyRows(p, w, counts, omega, begin, end, true);
+void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const {
+  MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size(), "simplex internal batch: size mismatch");
+  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad particle range");
+  double* x = p.data() + first_;
+  double* y = x + p.rows();
+  double* z = y + p.rows();
+  const JacobiView j{revFlat_.data(), revRow_.data(), c_.data(), scale_.data(), dx_.data(), dy_.data(), dz_.data()};
+  int v = begin;
+  if (uniform4_) {
+#if MSK_BATCH_AVX
+    v = wide_ ? lanes4::applyParticles(j, x, y, z, begin, end) : lanes2::applyParticles(j, x, y, z, begin, end);
+#else
+    v = lanes2::applyParticles(j, x, y, z, begin, end);
+#endif
+  }
+  for (; v < end; ++v) {
+    double ax = 0, ay = 0, az = 0;
+    for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e) {
+      const size_t r = static_cast<size_t>(revRow_[static_cast<size_t>(e)]);
+      const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])] * scale_[r];
+      ax += c * dx_[r];
+      ay += c * dy_[r];
+      az += c * dz_[r];
+    }
+    x[v] += ax;
+    y[v] += ay;
+    z[v] += az;
+  }
 }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   const int skipped = computeRange(p, w, 0, size());
-  ownCounts_.setZero(w.size());
-  addCounts(w, ownCounts_);
-  applyRange(p, w, ownCounts_, omega, 0, size());
+  const auto free = w.segment(first_, size()).array();
+  if (skipped == 0 && uniform4_ && (free > 0).all()) {
+    // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
+    std::fill(scale_.begin(), scale_.end(), omega / 4);
+  } else {
+    ownCounts_.setZero(w.size());
+    addCounts(w, ownCounts_);
+    scaleRange(ownCounts_, omega, 0, size());
+  }
+  applyRange(p, 0, size());
   return skipped;
 }
 

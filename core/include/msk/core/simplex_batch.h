@@ -10,10 +10,9 @@
 ///   SimplexInternalBatch b(reference, gamma);  b.setFirstParticle(first);     // once per set
 ///   coloured:  for each colour k: b.projectRange(p, w, b.colourBegin(k), b.colourBegin(k + 1))  (a colour's range
 ///              may be split over threads: its rows share no particle)
-///   Jacobi:    b.computeRange(p, w, begin, end) over [0, size()) (any split over threads), then
-///              b.addCounts(w, counts) (serial, adding to the other sets' counts), then after every set is counted
-///              b.applyColourRange(p, w, counts, omega, colourBegin(k), colourBegin(k + 1)) colour by colour (split
-///              over threads), or b.applyRange(p, w, counts, omega, 0, size()) on one thread.
+///   Jacobi:    b.computeRange(p, w, begin, end) over [0, size()), then b.addCounts(w, counts) (adding to the other
+///              sets' counts), then once every set is counted b.scaleRange(counts, omega, begin, end) and
+///              b.applyRange(p, begin, end) over [0, size()); every step but addCounts() may be split over threads.
 #include <cstdint>
 #include <vector>
 
@@ -59,18 +58,18 @@ class SimplexInternalBatch {
   /// One coloured Gauss–Seidel sweep over every row, colour by colour; returns the rows skipped.
   int colouredSweep(Points& p, const Eigen::VectorXd& w) const;
 
-  /// Jacobi, first half: the corrections of rows (vertices) [begin, end) at positions `p`, kept for the apply step.
-  /// Disjoint ranges may be computed at the same time. Returns the rows skipped.
+  /// Jacobi, step 1: the corrections of rows (vertices) [begin, end) at positions `p`, kept for the next steps
+  /// (skipped rows keep zeros). Disjoint ranges may run at the same time. Returns the rows skipped.
   int computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end);
-  /// Jacobi, counting: counts[j] += 1 for every free particle j (w > 0) of every row kept by computeRange().
+  /// Jacobi, step 2: counts[j] += the number of rows kept by computeRange() that touch particle j, for every free
+  /// particle j (w > 0) of the set (the Solver's counts, summed over every set before step 3).
   void addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& counts) const;
-  /// Jacobi, second half, on rows (vertices) [begin, end), one thread: each kept correction scaled by ω / (largest
-  /// count at one of its row's particles, at least 1), as Solver's weighted-sum Jacobi does.
-  void applyRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin,
-                  int end) const;
-  /// As applyRange() on positions [begin, end) of the colour order, within one colour (safe to split over threads).
-  void applyColourRange(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin,
-                        int end) const;
+  /// Jacobi, step 3, rows [begin, end): each kept correction scaled by ω / (largest count at one of its row's
+  /// particles, at least 1), as Solver's weighted-sum Jacobi does. Disjoint ranges may run at the same time.
+  void scaleRange(const Eigen::VectorXi& counts, double omega, int begin, int end);
+  /// Jacobi, step 4, particles (local indices) [begin, end): each adds the scaled corrections of the rows touching it,
+  /// gathered (no scatter), so disjoint ranges may run at the same time.
+  void applyRange(Points& p, int begin, int end) const;
   /// One Jacobi iteration of this set alone (counts from its own rows), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
@@ -79,15 +78,17 @@ class SimplexInternalBatch {
   bool wide_ = false;
   int first_ = 0;
   double gamma_;
-  void applyRows(Points& p, const Eigen::VectorXd& w, const Eigen::VectorXi& counts, double omega, int begin, int end,
-                 bool colourOrder) const;
   std::vector<int> colourStart_;            ///< #colours + 1 offsets into order_
   std::vector<int> order_;                  ///< rows (vertices, local indices) colour by colour
   std::vector<int> nb0_, nb1_, nb2_;        ///< each vertex's neighbours (local indices)
   std::vector<double> eps0_, eps1_, eps2_;  ///< reference ε̃i
   std::vector<double> hr_;                  ///< reference h̃ = h / r⊥ (scale-free height)
-  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = cj d (before ω).
-  std::vector<double> dx_, dy_, dz_, c0_, c1_, c2_, c3_;
+  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = cj d, c_ holding slot j
+  // of row r at j·n + r; scale_: each row's ω / count from scaleRange().
+  std::vector<double> dx_, dy_, dz_, c_, scale_;
+  // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_).
+  std::vector<int> revStart_, revRow_, revFlat_;
+  bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
 };
