@@ -150,30 +150,52 @@ BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
 BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
 
-// The same set through the batch kernel (simplex_batch.h): struct-of-arrays rows in coloured order, two rows at a
-// time, no virtual call. One thread; one sweep per iteration over every vertex of the perturbed sphere of
-// BM_SimplexInternal (γ = 0.5, unit masses): a weighted-sum Jacobi iteration (ω = 1.5, corrections from the same
-// positions, then scaled and applied) or a coloured Gauss–Seidel sweep. Items = projections; compare with
-// BM_SolverInternal/jacobi and /coloured, the per-row path of the same schemes.
-void BM_BatchInternal(benchmark::State& state, bool jacobi) {
+// The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, four rows at a time with AVX
+// (chosen at run time) or two with SSE2 (`_sse2`), no virtual call. One thread; one sweep per iteration over every
+// vertex of the perturbed sphere of BM_SimplexInternal (γ = 0.5, unit masses): a weighted-sum Jacobi iteration
+// (ω = 1.5: corrections from the same positions, then scaled and applied; jacobiSweep() with its every-row-kept
+// shortcut), the same through the four steps a multi-set solver calls (`jacobi_counted`: compute, count, scale,
+// apply), or a coloured Gauss–Seidel sweep. Items = projections; compare BM_SolverInternal/jacobi and /coloured, the
+// per-row path of the same schemes.
+enum class BatchMode { Jacobi, JacobiCounted, Coloured };
+void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
   const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::SimplexInternalBatch batch(s, 0.5);
+  batch.useWideLanes(wide);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
+  Eigen::VectorXi counts(n);
   int skipped = 0;
   for (auto _ : state) {
-    skipped = jacobi ? batch.jacobiSweep(p, w, 1.5) : batch.colouredSweep(p, w);
+    switch (mode) {
+      case BatchMode::Jacobi: skipped = batch.jacobiSweep(p, w, 1.5); break;
+      case BatchMode::JacobiCounted:
+        skipped = batch.computeRange(p, w, 0, n);
+        counts.setZero();
+        batch.addCounts(w, counts);
+        batch.scaleRange(counts, 1.5, 0, n);
+        batch.applyRange(p, 0, n);
+        break;
+      case BatchMode::Coloured: skipped = batch.colouredSweep(p, w); break;
+    }
     benchmark::DoNotOptimize(p.data());
     benchmark::ClobberMemory();
   }
   state.counters["skipped"] = skipped;
   state.counters["colours"] = batch.colours();
+  state.counters["lanes"] = batch.wideLanes() ? 4 : 2;
   finish(state, n, n);
 }
-BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, true)
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, BatchMode::Jacobi, true)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
-BENCHMARK_CAPTURE(BM_BatchInternal, coloured, false)
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_counted, BatchMode::JacobiCounted, true)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK_CAPTURE(BM_BatchInternal, coloured, BatchMode::Coloured, true)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_sse2, BatchMode::Jacobi, false)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK_CAPTURE(BM_BatchInternal, coloured_sse2, BatchMode::Coloured, false)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 
 // Image target constraints (one per vertex, weight 1).
