@@ -11,8 +11,8 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// A 4-lane path with AVX (256-bit doubles), compiled for that instruction set function by function and chosen at run
-// time when the processor has it; the project's flags (no -march) stay as they are.
+// A 4-lane path with AVX2 (256-bit doubles, hardware gathers), compiled for that instruction set function by function
+// and chosen at run time when the processor has it; the project's flags (no -march) stay as they are.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__SSE2__)
 #define MSK_BATCH_AVX 1
 #include <immintrin.h>
@@ -48,9 +48,10 @@ struct JacobiOut {
   std::uint8_t* kept;
 };
 
-/// What the per-particle Jacobi apply reads: for particle v, entries 4v .. 4v + 3 name a row touching it (`row`) and
-/// the place of its coefficient in `c` (slot·n + row).
+/// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) name a row touching it (`row`)
+/// and the place of its coefficient in `c` (slot·n + row).
 struct JacobiView {
+  std::ptrdiff_t n;
   const int *flat, *row;
   const double *c, *scale, *dx, *dy, *dz;
 };
@@ -65,7 +66,6 @@ struct D2 {
   __m128d v;
 };
 inline D2 splat(double a) { return {_mm_set1_pd(a)}; }
-inline D2 gather(const double* b, const int* i) { return {_mm_set_pd(b[i[1]], b[i[0]])}; }
 inline D2 loadu(const double* p) { return {_mm_loadu_pd(p)}; }
 inline void storeu(D2 a, double* out) { _mm_storeu_pd(out, a.v); }
 inline D2 operator+(D2 a, D2 b) { return {_mm_add_pd(a.v, b.v)}; }
@@ -110,7 +110,6 @@ inline D2 map2(D2 a, D2 b, F f) {
   return {{f(a.v[0], b.v[0]), f(a.v[1], b.v[1])}};
 }
 inline D2 splat(double a) { return {{a, a}}; }
-inline D2 gather(const double* b, const int* i) { return {{b[i[0]], b[i[1]]}}; }
 inline D2 loadu(const double* p) { return {{p[0], p[1]}}; }
 inline void storeu(D2 a, double* out) {
   out[0] = a.v[0];
@@ -193,19 +192,37 @@ bool literalRow(const BatchArrays& a, int v, double gamma, double out[7]) {
   return true;
 }
 
+/// Two indices (the 2-lane packs gather element by element).
+struct Idx2 {
+  int i[2];
+};
+inline Idx2 loadIdx(const int* p) { return {{p[0], p[1]}}; }
+inline Idx2 iota(int r) { return {{r, r + 1}}; }
+inline Idx2 gatherIdx(const int* base, Idx2 k) { return {{base[k.i[0]], base[k.i[1]]}}; }
+inline void storeIdx(Idx2 k, int* out) {
+  out[0] = k.i[0];
+  out[1] = k.i[1];
+}
+#if defined(__SSE2__)
+inline D2 gather(const double* b, Idx2 k) { return {_mm_set_pd(b[k.i[1]], b[k.i[0]])}; }
+#else
+inline D2 gather(const double* b, Idx2 k) { return {{b[k.i[0]], b[k.i[1]]}}; }
+#endif
+
 namespace lanes2 {
 using Pack = D2;
+using Idx = Idx2;
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes2
 
-// ------------------------------------------------------------------------------------------------ four lanes (AVX)
+// ------------------------------------------------------------------------------------------------ four lanes (AVX2)
 
 #if MSK_BATCH_AVX
 #if defined(__clang__)
-#pragma clang attribute push(__attribute__((target("avx"))), apply_to = function)
+#pragma clang attribute push(__attribute__((target("avx2"))), apply_to = function)
 #else
 #pragma GCC push_options
-#pragma GCC target("avx")
+#pragma GCC target("avx2")
 #endif
 namespace lanes4 {
 struct D4 {
@@ -213,7 +230,20 @@ struct D4 {
   __m256d v;
 };
 inline D4 splat(double a) { return {_mm256_set1_pd(a)}; }
-inline D4 gather(const double* b, const int* i) { return {_mm256_set_pd(b[i[3]], b[i[2]], b[i[1]], b[i[0]])}; }
+/// Four indices in one register.
+struct Idx {
+  __m128i v;
+};
+inline Idx loadIdx(const int* p) { return {_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))}; }
+inline Idx iota(int r) { return {_mm_add_epi32(_mm_set1_epi32(r), _mm_setr_epi32(0, 1, 2, 3))}; }
+// The masked forms (all lanes on) say what the unmasked ones leave undefined, which GCC 12 warns about.
+inline Idx gatherIdx(const int* base, Idx k) {
+  return {_mm_mask_i32gather_epi32(_mm_setzero_si128(), base, k.v, _mm_set1_epi32(-1), 4)};
+}
+inline void storeIdx(Idx k, int* out) { _mm_storeu_si128(reinterpret_cast<__m128i*>(out), k.v); }
+inline D4 gather(const double* b, Idx k) {
+  return {_mm256_mask_i32gather_pd(_mm256_setzero_pd(), b, k.v, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8)};
+}
 inline D4 loadu(const double* p) { return {_mm256_loadu_pd(p)}; }
 inline void storeu(D4 a, double* out) { _mm256_storeu_pd(out, a.v); }
 inline D4 operator+(D4 a, D4 b) { return {_mm256_add_pd(a.v, b.v)}; }
@@ -244,10 +274,10 @@ using Pack = D4;
 #pragma GCC pop_options
 #endif
 
-/// Whether this processor (and its operating system) runs AVX.
+/// Whether this processor (and its operating system) runs AVX2.
 bool avxAvailable() {
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx");
+  return __builtin_cpu_supports("avx2");
 }
 #else
 bool avxAvailable() { return false; }
@@ -333,6 +363,15 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     }
   uniform4_ = true;
   for (size_t v = 0; v < un; ++v) uniform4_ = uniform4_ && revStart_[v + 1] - revStart_[v] == 4;
+  if (uniform4_) {  // entry-major copies: entry e of particles v .. v + 3 contiguous
+    tFlat_.resize(4 * un);
+    tRow_.resize(4 * un);
+    for (size_t v = 0; v < un; ++v)
+      for (size_t e = 0; e < 4; ++e) {
+        tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
+        tRow_[e * un + v] = revRow_[static_cast<size_t>(revStart_[v]) + e];
+      }
+  }
   kept_.assign(un, 0);
   wide_ = avxAvailable();
 }
@@ -395,9 +434,10 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
   const std::uint8_t* kept = kept_.data();
   const int* row = revRow_.data();
   if (uniform4_) {
-    for (int v = 0; v < size(); ++v) {
-      const int* e = row + 4 * v;
-      const int k = kept[e[0]] + kept[e[1]] + kept[e[2]] + kept[e[3]];
+    const int* t = tRow_.data();
+    const int n = size();
+    for (int v = 0; v < n; ++v) {
+      const int k = kept[t[v]] + kept[t[n + v]] + kept[t[2 * n + v]] + kept[t[3 * n + v]];
       cnt[v] += wv[v] > 0 ? k : 0;
     }
     return;
@@ -431,7 +471,8 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const {
   double* x = p.data() + first_;
   double* y = x + p.rows();
   double* z = y + p.rows();
-  const JacobiView j{revFlat_.data(), revRow_.data(), c_.data(), scale_.data(), dx_.data(), dy_.data(), dz_.data()};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), scale_.data(),
+                     dx_.data(), dy_.data(), dz_.data()};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX

@@ -2,8 +2,8 @@
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
 /// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, four rows at a time with AVX where the
-/// processor has it (chosen at run time; the build flags stay baseline), else two (SSE2 doubles, or plain scalars off
-/// x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
+/// processor has AVX2 (chosen at run time; the build flags stay baseline), else two (SSE2 doubles, or plain scalars
+/// off x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
 /// SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
@@ -43,7 +43,7 @@ class SimplexInternalBatch {
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
   /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
-  /// Four rows at a time with AVX where the processor has it (the default), or two (SSE2) with `on` = false. Both
+  /// Four rows at a time with AVX2 where the processor has it (the default), or two (SSE2) with `on` = false. Both
   /// give the per-row path's corrections up to rounding, but not bitwise the same ones.
   void useWideLanes(bool on);
   /// Whether the sweeps run four rows at a time.
@@ -88,6 +88,7 @@ class SimplexInternalBatch {
   std::vector<double> dx_, dy_, dz_, c_, scale_;
   // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_).
   std::vector<int> revStart_, revRow_, revFlat_;
+  std::vector<int> tRow_, tFlat_;  ///< with uniform4_: the same, entry e of particle v at e·n + v
   bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
