@@ -150,7 +150,7 @@ BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
 BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
 
-// The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, four rows at a time with AVX
+// The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, eight rows at a time with AVX2
 // (chosen at run time) or two with SSE2 (`_sse2`), no virtual call. One thread; one sweep per iteration over every
 // vertex of the perturbed sphere of BM_SimplexInternal (γ = 0.5, unit masses): a weighted-sum Jacobi iteration
 // (ω = 1.5: corrections from the same positions, then scaled and applied; jacobiSweep() with its every-row-kept
@@ -184,7 +184,7 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
   }
   state.counters["skipped"] = skipped;
   state.counters["colours"] = batch.colours();
-  state.counters["lanes"] = batch.wideLanes() ? 4 : 2;
+  state.counters["lanes"] = batch.wideLanes() ? 8 : 2;
   finish(state, n, n);
 }
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, BatchMode::Jacobi, true)

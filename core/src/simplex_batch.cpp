@@ -11,8 +11,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// A 4-lane path with AVX2 (256-bit doubles, hardware gathers), compiled for that instruction set function by function
-// and chosen at run time when the processor has it; the project's flags (no -march) stay as they are.
+// A wide path with AVX2 (256-bit doubles, hardware gathers; eight rows per step as two 4-lane packs), compiled for that
+// instruction set function by function and chosen at run time when the processor has it; the project's flags (no
+// -march) stay as they are.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__SSE2__)
 #define MSK_BATCH_AVX 1
 #include <immintrin.h>
@@ -264,10 +265,59 @@ inline D4 operator~(D4 m) { return {_mm256_xor_pd(m.v, _mm256_castsi256_pd(_mm25
 inline D4 select(D4 m, D4 a, D4 b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
 inline D4 flipSign(D4 a, D4 s) { return {_mm256_xor_pd(a.v, _mm256_and_pd(s.v, _mm256_set1_pd(-0.0)))}; }
 inline int bits(D4 m) { return _mm256_movemask_pd(m.v); }
-
-using Pack = D4;
-#include "simplex_batch_kernel.inc"
 }  // namespace lanes4
+
+
+namespace lanes8 {
+// Eight rows as two independent 4-lane packs in lockstep: twice the independent work between the long-latency steps
+// (gathers, square root, divisions) of one row.
+using lanes4::D4;
+struct D8 {
+  static constexpr int lanes = 8;
+  D4 lo, hi;
+};
+struct Idx {
+  lanes4::Idx lo, hi;
+};
+inline D8 splat(double a) { return {lanes4::splat(a), lanes4::splat(a)}; }
+inline D8 loadu(const double* p) { return {lanes4::loadu(p), lanes4::loadu(p + 4)}; }
+inline void storeu(D8 a, double* out) {
+  lanes4::storeu(a.lo, out);
+  lanes4::storeu(a.hi, out + 4);
+}
+inline Idx loadIdx(const int* p) { return {lanes4::loadIdx(p), lanes4::loadIdx(p + 4)}; }
+inline Idx iota(int r) { return {lanes4::iota(r), lanes4::iota(r + 4)}; }
+inline Idx gatherIdx(const int* base, Idx k) { return {lanes4::gatherIdx(base, k.lo), lanes4::gatherIdx(base, k.hi)}; }
+inline void storeIdx(Idx k, int* out) {
+  lanes4::storeIdx(k.lo, out);
+  lanes4::storeIdx(k.hi, out + 4);
+}
+inline D8 gather(const double* b, Idx k) { return {lanes4::gather(b, k.lo), lanes4::gather(b, k.hi)}; }
+#define MSK_D8_BINARY(op, f) \
+  inline D8 op(D8 a, D8 b) { return {lanes4::f(a.lo, b.lo), lanes4::f(a.hi, b.hi)}; }
+inline D8 operator+(D8 a, D8 b) { return {a.lo + b.lo, a.hi + b.hi}; }
+inline D8 operator-(D8 a, D8 b) { return {a.lo - b.lo, a.hi - b.hi}; }
+inline D8 operator*(D8 a, D8 b) { return {a.lo * b.lo, a.hi * b.hi}; }
+inline D8 operator/(D8 a, D8 b) { return {a.lo / b.lo, a.hi / b.hi}; }
+inline D8 operator&(D8 a, D8 b) { return {a.lo & b.lo, a.hi & b.hi}; }
+inline D8 operator|(D8 a, D8 b) { return {a.lo | b.lo, a.hi | b.hi}; }
+inline D8 operator~(D8 m) { return {~m.lo, ~m.hi}; }
+MSK_D8_BINARY(vmax, vmax)
+MSK_D8_BINARY(gt, gt)
+MSK_D8_BINARY(lt, lt)
+MSK_D8_BINARY(ge, ge)
+MSK_D8_BINARY(eq, eq)
+MSK_D8_BINARY(notLe, notLe)
+MSK_D8_BINARY(flipSign, flipSign)
+#undef MSK_D8_BINARY
+inline D8 vsqrt(D8 a) { return {lanes4::vsqrt(a.lo), lanes4::vsqrt(a.hi)}; }
+inline D8 vabs(D8 a) { return {lanes4::vabs(a.lo), lanes4::vabs(a.hi)}; }
+inline D8 select(D8 m, D8 a, D8 b) { return {lanes4::select(m.lo, a.lo, b.lo), lanes4::select(m.hi, a.hi, b.hi)}; }
+inline int bits(D8 m) { return lanes4::bits(m.lo) | (lanes4::bits(m.hi) << 4); }
+
+using Pack = D8;
+#include "simplex_batch_kernel.inc"
+}  // namespace lanes8
 #if defined(__clang__)
 #pragma clang attribute pop
 #else
@@ -402,7 +452,7 @@ int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int 
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
   const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
 #if MSK_BATCH_AVX
-  if (wide_) return lanes4::projectRows(a, gamma_, begin, end);
+  if (wide_) return lanes8::projectRows(a, gamma_, begin, end);
 #endif
   return lanes2::projectRows(a, gamma_, begin, end);
 }
@@ -421,7 +471,7 @@ int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w
   double* c = c_.data();
   const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
 #if MSK_BATCH_AVX
-  if (wide_) return lanes4::computeRows(a, gamma_, begin, end, o);
+  if (wide_) return lanes8::computeRows(a, gamma_, begin, end, o);
 #endif
   return lanes2::computeRows(a, gamma_, begin, end, o);
 }
@@ -476,7 +526,7 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const {
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
-    v = wide_ ? lanes4::applyParticles(j, x, y, z, begin, end) : lanes2::applyParticles(j, x, y, z, begin, end);
+    v = wide_ ? lanes8::applyParticles(j, x, y, z, begin, end) : lanes2::applyParticles(j, x, y, z, begin, end);
 #else
     v = lanes2::applyParticles(j, x, y, z, begin, end);
 #endif

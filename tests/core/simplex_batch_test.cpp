@@ -106,7 +106,7 @@ TEST_P(SimplexBatchAgreement, ColouredSweepsMatchTheSolver) {
   const Case c = GetParam();
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 11);
   const Points expected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 3, c.gamma, 1.0);
-  for (bool wide : {false, true}) {  // two lanes (SSE2) and four (AVX, where the processor has it)
+  for (bool wide : {false, true}) {  // two lanes (SSE2) and eight (AVX2, where the processor has it)
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
     batch.useWideLanes(wide);

@@ -1,9 +1,9 @@
 #pragma once
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
-/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, four rows at a time with AVX where the
-/// processor has AVX2 (chosen at run time; the build flags stay baseline), else two (SSE2 doubles, or plain scalars
-/// off x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
+/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, eight rows at a time (two 4-lane packs,
+/// hardware gathers) where the processor has AVX2 (chosen at run time; the build flags stay baseline), else two
+/// (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
 /// SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
@@ -43,10 +43,10 @@ class SimplexInternalBatch {
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
   /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
-  /// Four rows at a time with AVX2 where the processor has it (the default), or two (SSE2) with `on` = false. Both
-  /// give the per-row path's corrections up to rounding, but not bitwise the same ones.
+  /// The AVX2 path (8 rows at a time) where the processor has it (the default), or the SSE2 one (2 rows) with `on` =
+  /// false. Both give the per-row path's corrections up to rounding, but not bitwise the same ones.
   void useWideLanes(bool on);
-  /// Whether the sweeps run four rows at a time.
+  /// Whether the sweeps take the AVX2 path.
   bool wideLanes() const { return wide_; }
   /// Vertex (local index) at position i of the colour order.
   int colourOrder(int i) const { return order_[static_cast<size_t>(i)]; }
