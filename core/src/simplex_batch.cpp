@@ -227,7 +227,6 @@ using Idx = Idx2;
 #endif
 namespace lanes4 {
 struct D4 {
-  static constexpr int lanes = 4;
   __m256d v;
 };
 inline D4 splat(double a) { return {_mm256_set1_pd(a)}; }
