@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include <Eigen/Dense>
@@ -435,21 +436,27 @@ void checkContactParameters(double gapMm, double proximityMm, double friction) {
 }  // namespace
 
 CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::shared_ptr<CollisionSurface> surfaceB,
-                                           double gapMm, double proximityMm, double friction)
+                                           double gapMm, double proximityMm, double friction,
+                                           const CollisionResponse& response)
     : firstA_(firstA), count_(vertexCount), surface_(std::move(surfaceB)), ownsSurface_(false), gap_(gapMm),
-      proximity_(proximityMm), friction_(friction) {
+      proximity_(proximityMm), friction_(friction), response_(response),
+      dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()) {
   checkContactParameters(gapMm, proximityMm, friction);
   MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
   first_ = firstA;
 }
 
 CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm,
-                                           double proximityMm, double friction)
+                                           double proximityMm, double friction, const CollisionResponse& response)
     : CollisionConstraints(firstA, vertexCount,
                            (checkContactParameters(gapMm, proximityMm, friction),
                             std::make_shared<CollisionSurface>(trianglesB, gapMm + proximityMm)),
-                           gapMm, proximityMm, friction) {
+                           gapMm, proximityMm, friction, response) {
   ownsSurface_ = true;
+}
+
+void CollisionConstraints::resetReference() {
+  std::fill(dref_.begin(), dref_.end(), std::numeric_limits<double>::quiet_NaN());
 }
 
 void CollisionConstraints::detect(const Points& p, bool insideTest) {
@@ -458,11 +465,12 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
   if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
   const WindingNumber* winding = nullptr;  // of B at p (shared with the other sets against B), when a side is needed
+  const bool reference = response_.target == CollisionTarget::Reference;
   for (int v = 0; v < count_; ++v) {
     const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
     const SurfacePoint s = surface_->closest(p, q, reach);
     if (s.triangle < 0) continue;
-    Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero()};
+    Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
     // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
     // taken to be outside (true when each step starts collision-free), so a correction can never push it through B.
     // With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
@@ -477,23 +485,125 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
       if (!(pseudo.norm() > 1e-12)) continue;
       found.normal = pseudo.normalized();
     }
+    // Reference target: the distance of the first detection is the one kept (at least the gap outside).
+    if (reference && std::isnan(dref_[static_cast<size_t>(v)]))
+      dref_[static_cast<size_t>(v)] = std::min(found.pc0.dot(found.normal), -gap_);
     contacts_.push_back(found);
   }
 }
 
+Eigen::Vector3d CollisionConstraints::relative(const Contact& c, const Points& q) const {
+  const Triangles& tri = surface_->triangles();
+  return c.bary[0] * q.row(tri(c.triangle, 0)).transpose() + c.bary[1] * q.row(tri(c.triangle, 1)).transpose() +
+         c.bary[2] * q.row(tri(c.triangle, 2)).transpose() - q.row(firstA_ + c.vertex).transpose();
+}
+
+void CollisionConstraints::apply(const Contact& c, const Eigen::Vector3d& delta, const Eigen::VectorXd& w,
+                                 Points& q) const {
+  const Triangles& tri = surface_->triangles();
+  const int a = firstA_ + c.vertex;
+  const int i0 = tri(c.triangle, 0), i1 = tri(c.triangle, 1), i2 = tri(c.triangle, 2);
+  const double wi[3] = {w[i0], w[i1], w[i2]};
+  Eigen::Vector3d dp, dpi[3];
+  if (!shareContactChange(delta, c.bary, w[a], wi, dp, dpi)) return;
+  q.row(a) += dp.transpose();
+  q.row(i0) += dpi[0].transpose();
+  q.row(i1) += dpi[1].transpose();
+  q.row(i2) += dpi[2].transpose();
+}
+
 void CollisionConstraints::project(Points& p, const Eigen::VectorXd& w) {
+  if (response_.mode != CollisionMode::Position) projectDeep(p, w);
+  else if (response_.resolution == CollisionResolution::Sequential) projectPositions(p, w);
+}
+
+void CollisionConstraints::projectDeep(Points& p, const Eigen::VectorXd& w) {
+  if (!std::isfinite(response_.positionBeyondMm)) return;
+  const ContactParameters spring{gap_, proximity_, friction_, CollisionTarget::Spring};
   for (const Contact& c : contacts_) {
-    const int a = firstA_ + c.vertex;
-    const Triangles& tri = surface_->triangles();
-    const int i0 = tri(c.triangle, 0), i1 = tri(c.triangle, 1), i2 = tri(c.triangle, 2);
-    const Eigen::Vector3d pi[3] = {p.row(i0).transpose(), p.row(i1).transpose(), p.row(i2).transpose()};
-    const double wi[3] = {w[i0], w[i1], w[i2]};
-    Eigen::Vector3d dp, dpi[3];
-    if (!collisionCorrection(p.row(a).transpose(), pi, c.bary, c.normal, gap_, friction_, w[a], wi, dp, dpi)) continue;
-    p.row(a) += dp.transpose();
-    p.row(i0) += dpi[0].transpose();
-    p.row(i1) += dpi[1].transpose();
-    p.row(i2) += dpi[2].transpose();
+    const Eigen::Vector3d pc = relative(c, p);
+    if (!(pc.dot(c.normal) > response_.positionBeyondMm)) continue;
+    Eigen::Vector3d delta;
+    if (contactPositionChange(pc, c.pc0, c.normal, spring, 0.0, delta)) apply(c, delta, w, p);
+  }
+}
+
+void CollisionConstraints::projectPositions(Points& p, const Eigen::VectorXd& w) {
+  if (response_.target == CollisionTarget::Spring) {
+    // The seed's position correction with a spring target (collisionCorrection(), kept as the reference kernel).
+    for (const Contact& c : contacts_) {
+      const int a = firstA_ + c.vertex;
+      const Triangles& tri = surface_->triangles();
+      const int i0 = tri(c.triangle, 0), i1 = tri(c.triangle, 1), i2 = tri(c.triangle, 2);
+      const Eigen::Vector3d pi[3] = {p.row(i0).transpose(), p.row(i1).transpose(), p.row(i2).transpose()};
+      const double wi[3] = {w[i0], w[i1], w[i2]};
+      Eigen::Vector3d dp, dpi[3];
+      if (!collisionCorrection(p.row(a).transpose(), pi, c.bary, c.normal, gap_, friction_, w[a], wi, dp, dpi)) continue;
+      p.row(a) += dp.transpose();
+      p.row(i0) += dpi[0].transpose();
+      p.row(i1) += dpi[1].transpose();
+      p.row(i2) += dpi[2].transpose();
+    }
+    return;
+  }
+  const ContactParameters prm = parameters();
+  for (const Contact& c : contacts_) {
+    Eigen::Vector3d delta;
+    if (contactPositionChange(relative(c, p), c.pc0, c.normal, prm, dref_[static_cast<size_t>(c.vertex)], delta))
+      apply(c, delta, w, p);
+  }
+}
+
+void CollisionConstraints::correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+  if (response_.mode != CollisionMode::Acceleration || response_.resolution != CollisionResolution::Sequential) return;
+  const ContactParameters prm = parameters();
+  for (const Contact& c : contacts_) {
+    Eigen::Vector3d delta;
+    if (contactAccelerationChange(relative(c, x), relative(c, v), c.normal, prm, dref_[static_cast<size_t>(c.vertex)],
+                                  h, delta))
+      apply(c, delta, w, v);
+  }
+}
+
+void CollisionConstraints::correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+  if (response_.mode != CollisionMode::Velocity || response_.resolution != CollisionResolution::Sequential) return;
+  const ContactParameters prm = parameters();
+  for (const Contact& c : contacts_) {
+    Eigen::Vector3d delta;
+    if (contactVelocityChange(relative(c, x), relative(c, v), c.normal, prm, dref_[static_cast<size_t>(c.vertex)], h,
+                              delta))
+      apply(c, delta, w, v);
+  }
+}
+
+void CollisionConstraints::appendRows(CollisionMode mode, const Points& x, const Points& v, double h,
+                                      std::vector<ContactRow>& rows) const {
+  const ContactParameters prm = parameters();
+  const Triangles& tri = surface_->triangles();
+  for (const Contact& c : contacts_) {
+    const double dref = dref_[static_cast<size_t>(c.vertex)];
+    const Eigen::Vector3d pc = relative(c, x);
+    ContactRow r;
+    bool any = false;
+    switch (mode) {
+      case CollisionMode::Position: any = contactPositionChange(pc, c.pc0, c.normal, prm, dref, r.change); break;
+      case CollisionMode::Velocity:
+        any = contactVelocityChange(pc, relative(c, v), c.normal, prm, dref, h, r.change);
+        break;
+      case CollisionMode::Acceleration:
+        any = contactAccelerationChange(pc, relative(c, v), c.normal, prm, dref, h, r.change);
+        break;
+    }
+    if (!any) continue;
+    r.index[0] = firstA_ + c.vertex;
+    r.weight[0] = -1.0;
+    for (int i = 0; i < 3; ++i) {
+      r.index[i + 1] = tri(c.triangle, i);
+      r.weight[i + 1] = c.bary[i];
+    }
+    r.normal = c.normal;
+    r.unilateral = response_.target != CollisionTarget::Reference;
+    rows.push_back(r);
   }
 }
 
@@ -507,6 +617,63 @@ double CollisionConstraints::maxPenetration(const Points& p) const {
     worst = std::max(worst, (pbar - p.row(firstA_ + c.vertex).transpose()).dot(c.normal));
   }
   return worst;
+}
+
+GlobalCollisionResolution::GlobalCollisionResolution(CollisionMode mode, const GlobalContactOptions& opts)
+    : mode_(mode), opts_(opts) {
+  if (opts.maxIterations < 1)
+    throw ParameterError("global collision cg iterations", std::to_string(opts.maxIterations), "must be at least 1");
+  if (!(opts.tolerance > 0) || !std::isfinite(opts.tolerance))
+    throw ParameterError("global collision cg tolerance", std::to_string(opts.tolerance), "must be positive");
+}
+
+void GlobalCollisionResolution::add(CollisionConstraints* set) {
+  MSK_ASSERT(set != nullptr, "global collision resolution: null member");
+  if (set->response().resolution != CollisionResolution::Global)
+    throw ParameterError("collision resolution", collisionResolutionName(set->response().resolution),
+                         "a member of a global resolution must be built with resolution \"global\"");
+  if (set->response().mode != mode_)
+    throw ParameterError("collision mode", collisionModeName(set->response().mode),
+                         std::string("differs from the global resolution's mode \"") + collisionModeName(mode_) + "\"");
+  members_.push_back(set);
+}
+
+void GlobalCollisionResolution::solve(CollisionMode mode, const Points& x, const Points& v, double h,
+                                      const Eigen::VectorXd& w, Points& q) {
+  // Position mode: a few passes, contacts that the previous solve left short (or newly violated) solved again together
+  // (the velocity and acceleration changes are not idempotent: one solve).
+  report_ = GlobalContactReport{};
+  const int passes = mode == CollisionMode::Position ? kPasses : 1;
+  for (int pass = 0; pass < passes; ++pass) {
+    rows_.clear();
+    for (const CollisionConstraints* m : members_) m->appendRows(mode, x, v, h, rows_);
+    if (rows_.empty()) break;
+    const GlobalContactReport r = solveContactsGlobal(rows_, w, q, opts_);
+    if (pass == 0) report_ = r;
+    else {
+      report_.iterations += r.iterations;
+      report_.dropped += r.dropped;
+      report_.residual = r.residual;
+    }
+  }
+}
+
+void GlobalCollisionResolution::project(Points& p, const Eigen::VectorXd& w) {
+  if (mode_ == CollisionMode::Position) projectPositions(p, w);
+  else
+    for (CollisionConstraints* m : members_) m->projectDeep(p, w);
+}
+
+void GlobalCollisionResolution::projectPositions(Points& p, const Eigen::VectorXd& w) {
+  solve(CollisionMode::Position, p, p, 1.0, w, p);
+}
+
+void GlobalCollisionResolution::correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+  if (mode_ == CollisionMode::Acceleration) solve(mode_, x, v, h, w, v);
+}
+
+void GlobalCollisionResolution::correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+  if (mode_ == CollisionMode::Velocity) solve(mode_, x, v, h, w, v);
 }
 
 }  // namespace msk

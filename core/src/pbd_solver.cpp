@@ -74,6 +74,7 @@ void dampTowardRigidMotion(const Points& x, const Eigen::VectorXd& w, double dam
 
 double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
   const double dt = opts_.dt;
+  for (ConstraintSet* s : sets) s->correctBeforePrediction(x_, v_, w_, dt);  // acceleration-mode collision response
   // Predict (no external forces: image forces enter as target constraints).
   p_ = x_ + dt * v_;
   for (int i = 0; i < w_.size(); ++i)
@@ -90,6 +91,7 @@ double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
   v_ = (p_ - x_) / dt;
   x_.swap(p_);
   dampTowardRigidMotion(x_, w_, opts_.damping, opts_.drag, v_);
+  for (ConstraintSet* s : sets) s->correctVelocities(x_, v_, w_, dt);  // velocity-mode collision response
   ++steps_;
   return maxDisp;
 }

@@ -274,7 +274,28 @@ struct Solver::Impl {
       if (w[i] > 0) v.row(i) += (x.row(i) - scratch.row(i)) / h;
   }
 
-  void positionSubstep(const std::vector<ConstraintSet*>& sets, double h) {
+  /// Velocity passes of the sets (collision response in acceleration mode): before the prediction of a substep.
+  void beforePrediction(const std::vector<ConstraintSet*>& sets, double h) {
+    for (ConstraintSet* s : sets) {
+      const auto t0 = Clock::now();
+      s->correctBeforePrediction(x, v, w, h);
+      addSeconds(*s, t0);
+    }
+  }
+
+  /// Velocity passes of the sets (collision response in velocity mode): after the velocity update of a substep.
+  void velocityPass(const std::vector<ConstraintSet*>& sets, double h) {
+    for (ConstraintSet* s : sets) {
+      const auto t0 = Clock::now();
+      s->correctVelocities(x, v, w, h);
+      addSeconds(*s, t0);
+    }
+  }
+
+  /// One position-based substep; `velocities`: run the sets' velocity passes at its end (the step's last substep
+  /// runs them after the damping instead).
+  void positionSubstep(const std::vector<ConstraintSet*>& sets, double h, bool velocities) {
+    beforePrediction(sets, h);
     // Predict (no external forces: image forces enter as target constraints).
     p = x + h * v;
     for (int i = 0; i < w.size(); ++i)
@@ -297,6 +318,7 @@ struct Solver::Impl {
     }
     v = (p - x) / h;
     x.swap(p);
+    if (velocities) velocityPass(sets, h);
   }
 
   // -------------------------------------------------------------------------------------------- force-based
@@ -350,7 +372,8 @@ struct Solver::Impl {
     }
   }
 
-  void explicitSubstep(const std::vector<ConstraintSet*>& sets, double h) {
+  void explicitSubstep(const std::vector<ConstraintSet*>& sets, double h, bool velocities) {
+    beforePrediction(sets, h);
     evaluateForces(sets);
     // Symplectic Euler: v ← v + h M⁻¹ F(x, v), x ← x + h v.
     for (int i = 0; i < x.rows(); ++i) {
@@ -362,6 +385,7 @@ struct Solver::Impl {
       }
     }
     correctRowless(sets, h);
+    if (velocities) velocityPass(sets, h);
   }
 
   /// 3×3 block of one row in the implicit matrix: h β uuᵀ + h² α S, applied to s.
@@ -394,8 +418,9 @@ struct Solver::Impl {
     }
   }
 
-  void implicitSubstep(const std::vector<ConstraintSet*>& sets, double h) {
+  void implicitSubstep(const std::vector<ConstraintSet*>& sets, double h, bool velocities) {
     const int n = static_cast<int>(x.rows());
+    beforePrediction(sets, h);
     evaluateForces(sets);
     const auto t0 = Clock::now();
     // Right-hand side h (F + h ∂F/∂x v): ∂F/∂x v = −Σ rows gj α S (Σ gl vl) − K_fallback v.
@@ -478,6 +503,7 @@ struct Solver::Impl {
       }
     }
     correctRowless(sets, h);
+    if (velocities) velocityPass(sets, h);
   }
 };
 
@@ -514,20 +540,26 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   m.cgIterations = 0;
   m.cgResidual = 0;
   for (int s = 0; s < m.opts.substeps; ++s) {
+    const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
     switch (m.opts.scheme) {
-      case Scheme::Explicit: m.explicitSubstep(sets, h); break;
-      case Scheme::Implicit: m.implicitSubstep(sets, h); break;
-      default: m.positionSubstep(sets, h); break;
+      case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
+      case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
+      default: m.positionSubstep(sets, h, velocities); break;
     }
   }
-  if (!m.x.allFinite() || !m.v.allFinite()) {
+  auto fail = [&] {
     m.x = x0;
     m.v = v0;
     throw Error("numerical failure: non-finite position after " + schemeName(m.opts.scheme) + " step " +
                 std::to_string(m.steps + 1));
-  }
+  };
+  if (!m.x.allFinite() || !m.v.allFinite()) fail();
   const double maxDisp = m.x.rows() > 0 ? (m.x - x0).rowwise().norm().maxCoeff() : 0.0;
   dampTowardRigidMotion(m.x, m.w, m.opts.damping, m.opts.drag, m.v);
+  // Velocity corrections (collision response in velocity mode) come after the damping, so that the velocities the
+  // next prediction uses are the corrected ones.
+  m.velocityPass(sets, h);
+  if (!m.v.allFinite()) fail();
   ++m.steps;
   return maxDisp;
 }

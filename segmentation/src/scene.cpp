@@ -24,7 +24,8 @@ const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "templat
 const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
                                              "image_force",     "medial_axis",        "radial_stiffness",
                                              "axis_spacing_mm", "volumetric",         "volume_stiffness"};
-const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction", "mode", "target"};
+const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction",
+                                                     "mode",   "target",       "resolution"};
 const std::vector<std::string> kForces = {"gradient", "profile"};
 constexpr double kAutoWithinMm = 2.0;  // "collisions": "auto"
 
@@ -232,6 +233,8 @@ void parsePairParameters(const Checker& check, const Json& e, const std::string&
     p.mode = static_cast<CollisionMode>(m);
   if (const int t = check.choice(e, "target", {"spring", "reaction", "reference"}, where, false); t >= 0)
     p.target = static_cast<CollisionTarget>(t);
+  if (const int r = check.choice(e, "resolution", {"sequential", "global"}, where, false); r >= 0)
+    p.resolution = static_cast<CollisionResolution>(r);
 }
 
 }  // namespace
@@ -251,24 +254,6 @@ ObjectModel defaultModel(ObjectKind k) {
       break;
   }
   return m;
-}
-
-const char* collisionModeName(CollisionMode m) {
-  switch (m) {
-    case CollisionMode::Position: return "position";
-    case CollisionMode::Velocity: return "velocity";
-    case CollisionMode::Acceleration: return "acceleration";
-  }
-  return "?";
-}
-
-const char* collisionTargetName(CollisionTarget t) {
-  switch (t) {
-    case CollisionTarget::Spring: return "spring";
-    case CollisionTarget::Reaction: return "reaction";
-    case CollisionTarget::Reference: return "reference";
-  }
-  return "?";
 }
 
 const char* objectKindName(ObjectKind k) {

@@ -415,7 +415,7 @@ TEST(Scene, EveryKindOfBadModelOrPairValueNamesTheKeyAndTheObject) {
       {twoObjects("", R"([{"pair": ["femur"]}])"), {"collisions[0]", "expected a pair of object names"}},
       {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "gap": 1}])"),
        {"collisions[0] (femur, quadriceps): unknown key \"gap\" (known: pair, gap_mm, proximity_mm, friction, mode, "
-        "target)"}},
+        "target, resolution)"}},
       {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "gap_mm": -1}])"),
        {"collisions[0] (femur, quadriceps): \"gap_mm\" must be a number >= 0, found -1"}},
       {twoObjects("", R"([{"pair": ["femur", "quadriceps"], "proximity_mm": 0}])"),

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "msk/core/collision_response.h"
 #include "msk/core/collision_surface.h"
 #include "msk/core/simplex_mesh.h"
 
@@ -105,6 +106,23 @@ class ConstraintSet {
     (void)out;
     return false;
   }
+  /// Velocity pass before the prediction of every substep of length `h` at positions `x` (#V×3): a set may change
+  /// the velocities `v` (acceleration-mode collision response). Default: nothing. Every scheme calls it.
+  virtual void correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+    (void)x;
+    (void)v;
+    (void)w;
+    (void)h;
+  }
+  /// Velocity pass after the velocity update of every substep of length `h` (after the damping on a step's last
+  /// substep), at the new positions `x`: a set may change the velocities `v` (velocity-mode collision response).
+  /// Default: nothing. Every scheme calls it.
+  virtual void correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+    (void)x;
+    (void)v;
+    (void)w;
+    (void)h;
+  }
   /// Changes whenever the particles of the rows change (a solver then recolours them).
   std::uint64_t rowLayout() const { return rowLayout_; }
   /// Identity of this set object (unique per construction), so solvers can cache its colouring.
@@ -188,25 +206,53 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
 
 /// Vertex–surface collisions of object A's vertices against a partner surface B (one direction; declare the reverse
 /// set too). Contacts are detected once per step (detect()): the closest point of B within gap + proximity, and the
-/// contact normal along the direction from that point to the vertex, signed (see detect()). Projection then uses the
-/// current positions and that normal.
+/// contact normal along the direction from that point to the vertex, signed (see detect()). The response
+/// (collision_response.h, Table 4.23) is chosen per set: position mode projects with the other constraints
+/// (project()), velocity mode corrects velocities after each substep's velocity update (correctVelocities()),
+/// acceleration mode before each prediction (correctBeforePrediction()); each contact is resolved sequentially here,
+/// or, with CollisionResolution::Global, by a GlobalCollisionResolution that owns this set's contacts together with
+/// others' (this set alone then does nothing). The reference target's distance d_ref is recorded per vertex of A the
+/// first time it is detected in contact (since construction or resetReference()), never less than the gap outside.
 class CollisionConstraints : public ConstraintSet {
  public:
   /// `vertexCount` vertices of A start at particle `firstA`; `surfaceB` is shared with the other sets against B and
   /// updated by its owner once per step, before detect(); its reach must cover gap + proximity. gap ≥ 0 and
   /// proximity > 0 in mm, friction μ ∈ [0, 1] (ParameterError otherwise).
   CollisionConstraints(int firstA, int vertexCount, std::shared_ptr<CollisionSurface> surfaceB, double gapMm,
-                       double proximityMm, double friction);
+                       double proximityMm, double friction, const CollisionResponse& response = {});
   /// As above with a surface of its own over `trianglesB` (global particle indices), updated by every detect().
   CollisionConstraints(int firstA, int vertexCount, const Triangles& trianglesB, double gapMm, double proximityMm,
-                       double friction);
+                       double friction, const CollisionResponse& response = {});
   std::string name() const override { return "collision"; }
   /// Finds, for every vertex of A, the closest point of B within gap + proximity at positions `p`. With `insideTest`
   /// the side comes from B's winding number (right even where B folds); without it every vertex is taken to be
   /// outside B, which is exact when the positions are collision-free and costs nothing (use the test where overlaps
   /// may already exist: first step of a level, clean-up sweeps, reports).
   void detect(const Points& p, bool insideTest = true);
+  /// Position mode, sequential resolution: projectPositions(); velocity and acceleration modes (either resolution):
+  /// projectDeep(); otherwise nothing.
   void project(Points& p, const Eigen::VectorXd& w) override;
+  /// Position correction, spring target, of the contacts whose vertex is more than response().positionBeyondMm inside
+  /// the partner (nothing when that is +inf).
+  void projectDeep(Points& p, const Eigen::VectorXd& w);
+  /// Acceleration mode, sequential: each contact's velocity change h·Ãc shared in turn.
+  void correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) override;
+  /// Velocity mode, sequential: each contact's velocity change Ṽc − Vc shared in turn.
+  void correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) override;
+  /// Position correction of every contact in turn with the set's target, whatever its mode and resolution (used by
+  /// project() and by clean-up sweeps).
+  void projectPositions(Points& p, const Eigen::VectorXd& w);
+  /// The contacts linearised for a global solve in `mode` at positions `x` and velocities `v` (substep `h`), appended
+  /// to `rows` (only contacts with something to correct).
+  void appendRows(CollisionMode mode, const Points& x, const Points& v, double h, std::vector<ContactRow>& rows) const;
+  /// The response this set was built with.
+  const CollisionResponse& response() const { return response_; }
+  /// Contact parameters (gap, proximity, friction, target).
+  ContactParameters parameters() const { return {gap_, proximity_, friction_, response_.target}; }
+  /// Forgets the recorded reference distances (the next detect() records them again).
+  void resetReference();
+  /// The recorded d_ref of vertex `v` of A (signed like Pc·n, mm; NaN if none is recorded).
+  double referenceDistance(int v) const { return dref_[static_cast<size_t>(v)]; }
   /// Contacts found by the last detect().
   int contacts() const { return static_cast<int>(contacts_.size()); }
   /// Largest penetration (mm, ≥ 0) among the contacts at positions `p`: how far a vertex of A is inside B.
@@ -217,12 +263,52 @@ class CollisionConstraints : public ConstraintSet {
     int vertex, triangle;
     double bary[3];
     Eigen::Vector3d normal;  ///< from B toward the vertex's allowed side, fixed at detection
+    Eigen::Vector3d pc0;     ///< Pc = P̄ − P at detection
   };
+  /// Relative quantity Σ bi Xi − X_P of contact `c` over rows of `q` (positions or velocities).
+  Eigen::Vector3d relative(const Contact& c, const Points& q) const;
+  /// Shares `delta` of contact `c` onto `q` (positions or velocities).
+  void apply(const Contact& c, const Eigen::Vector3d& delta, const Eigen::VectorXd& w, Points& q) const;
   int firstA_, count_;
   std::shared_ptr<CollisionSurface> surface_;
   bool ownsSurface_;
   double gap_, proximity_, friction_;
+  CollisionResponse response_;
   std::vector<Contact> contacts_;
+  std::vector<double> dref_;  ///< per vertex of A: recorded reference distance (NaN = none)
+};
+
+/// Global collision resolution (DESIGN-NOTES §5): the contacts of every member set (all built with
+/// CollisionResolution::Global and this set's mode) resolved together by solveContactsGlobal() — in project() for
+/// position mode, correctVelocities() for velocity mode, correctBeforePrediction() for acceleration mode; in position
+/// mode each call solves up to three times, over the contacts still violated after the last solve. Members
+/// are detected by their owner as usual; they must outlive this set.
+class GlobalCollisionResolution : public ConstraintSet {
+ public:
+  /// `mode` of every member; conjugate-gradient settings `opts`.
+  explicit GlobalCollisionResolution(CollisionMode mode, const GlobalContactOptions& opts = {});
+  std::string name() const override { return "collision"; }
+  /// Adds a member (ParameterError if its resolution is not global or its mode differs).
+  void add(CollisionConstraints* set);
+  void project(Points& p, const Eigen::VectorXd& w) override;
+  void correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) override;
+  void correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) override;
+  /// One global position correction of every member's contacts with their targets, whatever the mode (clean-up).
+  void projectPositions(Points& p, const Eigen::VectorXd& w);
+  /// What the last solve did.
+  const GlobalContactReport& lastReport() const { return report_; }
+  /// The members.
+  const std::vector<CollisionConstraints*>& members() const { return members_; }
+
+ private:
+  /// Up to kPasses global solves, each over the contacts with something left to correct at the current state.
+  void solve(CollisionMode mode, const Points& x, const Points& v, double h, const Eigen::VectorXd& w, Points& q);
+  static constexpr int kPasses = 3;
+  CollisionMode mode_;
+  GlobalContactOptions opts_;
+  std::vector<CollisionConstraints*> members_;
+  std::vector<ContactRow> rows_;
+  GlobalContactReport report_;
 };
 
 /// Kind of transform a global shape prior fits.

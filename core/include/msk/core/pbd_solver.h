@@ -33,7 +33,9 @@ class PbdSolver {
   void prepare(const Points& positions, const Eigen::VectorXd& inverseMass);
   /// Replaces the positions (e.g. after a change of resolution level), keeping zero velocity.
   void reset(const Points& positions, const Eigen::VectorXd& inverseMass);
-  /// One step with the given constraint sets, projected in order; returns the largest displacement (mm).
+  /// One step with the given constraint sets: their velocity pass before the prediction
+  /// (ConstraintSet::correctBeforePrediction()), projections in order, velocity update, damping, then their velocity
+  /// pass (ConstraintSet::correctVelocities()); returns the largest displacement (mm).
   /// Throws Error if a position becomes non-finite (the state is left as before the step).
   double step(const std::vector<ConstraintSet*>& sets);
   /// Current positions.

@@ -17,7 +17,12 @@
 ///
 /// Sets that expose rows (ConstraintRow: 2-simplex internal, image targets, global prior, radial, 3-simplex) run in
 /// every form; a set without rows (collisions) is projected with ConstraintSet::project() by the Gauss–Seidel and
-/// XPBD schemes, and by Jacobi and the force-based ones as SolverOptions::rowless says.
+/// XPBD schemes, and by Jacobi and the force-based ones as SolverOptions::rowless says. Every scheme calls each set's
+/// velocity passes: ConstraintSet::correctBeforePrediction() at the start of every substep, and
+/// ConstraintSet::correctVelocities() after the velocity update of every substep (after the damping on a step's last
+/// substep), which is where collision response in acceleration and velocity mode acts (collision_response.h). How a
+/// collision pair's contacts are resolved (sequential or global conjugate gradient) belongs to its constraint sets
+/// (CollisionConstraints, GlobalCollisionResolution), not to the scheme.
 #include <map>
 #include <memory>
 #include <string>
@@ -103,7 +108,8 @@ class Solver {
   void prepare(const Points& positions, const Eigen::VectorXd& inverseMass);
   /// Replaces the positions (e.g. after a change of resolution level), keeping zero velocity.
   void reset(const Points& positions, const Eigen::VectorXd& inverseMass);
-  /// One step (all substeps) with the given constraint sets, in order; returns the largest displacement (mm).
+  /// One step (all substeps) with the given constraint sets, in order, then the damping and the sets' velocity pass;
+  /// returns the largest displacement (mm).
   /// Throws Error if a position becomes non-finite (the state is left as before the step).
   double step(const std::vector<ConstraintSet*>& sets);
   /// Current positions.

@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "msk/core/collision_response.h"
 #include "msk/core/constraints.h"
 #include "msk/core/json.h"
 #include "msk/core/triangle_mesh.h"
@@ -64,15 +65,7 @@ struct SceneObject {
   std::optional<Eigen::Matrix4d> profileSource;
 };
 
-/// How a collision correction is applied (Table 4.23 of the thesis seed).
-enum class CollisionMode { Position, Velocity, Acceleration };
-/// "position" | "velocity" | "acceleration".
-const char* collisionModeName(CollisionMode m);
-
-/// Where a colliding vertex is sent (Table 4.23 of the thesis seed).
-enum class CollisionTarget { Spring, Reaction, Reference };
-/// "spring" | "reaction" | "reference".
-const char* collisionTargetName(CollisionTarget t);
+// CollisionMode, CollisionTarget and CollisionResolution (with their names) live in msk/core/collision_response.h.
 
 /// One collision pair of a scene. Parameters < 0 take the run's value (SegmentOptions).
 struct CollisionPair {
@@ -80,8 +73,10 @@ struct CollisionPair {
   double gapMm = -1;         ///< "gap_mm": clearance g kept between the partners, mm, ≥ 0
   double proximityMm = -1;   ///< "proximity_mm": contact search reach d_max beyond the gap, mm, > 0
   double friction = -1;      ///< "friction": μ ∈ [0, 1]
-  CollisionMode mode = CollisionMode::Position;      ///< "mode"
-  CollisionTarget target = CollisionTarget::Spring;  ///< "target"
+  CollisionMode mode = CollisionMode::Position;      ///< "mode": "position" | "velocity" | "acceleration"
+  CollisionTarget target = CollisionTarget::Spring;  ///< "target": "spring" | "reaction" | "reference"
+  /// "resolution": "sequential" | "global"; unset = the run's (SegmentOptions::collisionResolution)
+  std::optional<CollisionResolution> resolution = std::nullopt;
   bool fromAuto = false;     ///< found by an "auto" entry (templates within its distance), not declared by name
 };
 
@@ -105,7 +100,8 @@ void toProfileSource(const SceneObject& obj, Points& positions, Points& normals)
 /// "collisions" is an array whose entries are ["a", "b"], {"pair": ["a", "b"], <parameters>} or one
 /// {"auto": true, "within_mm": D, <parameters>} (D ≥ 0, default 2) that adds every pair of objects whose templates
 /// come within D mm of each other or overlap (surfaceSeparationMm), except pairs declared by name, which keep their
-/// own parameters. <parameters> are the optional "gap_mm", "proximity_mm", "friction", "mode", "target".
+/// own parameters. <parameters> are the optional "gap_mm", "proximity_mm", "friction", "mode", "target",
+/// "resolution".
 /// "collisions": "auto" is short for [{"auto": true, "within_mm": 2}].
 Scene loadScene(const std::string& path);
 
