@@ -201,7 +201,23 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["collision_gap_mm"] = o.collisionGapMm;
   j["collision_proximity_mm"] = o.collisionProximityMm;
   j["collision_friction"] = o.collisionFriction;
-  j["collision_mode"] = "position, spring target, sequential";
+  // Per pair what the run used (segmentScene() fills it); without pairs (or outside a run) the run's default.
+  if (s.collisionResponses.empty()) {
+    j["collision_mode"] = std::string("position, spring target, ") + collisionResolutionName(o.collisionResolution);
+  } else {
+    Json modes = Json::array();
+    for (const PairResponse& p : s.collisionResponses) {
+      Json m;
+      m["objects"] = Json(Json::Array{p.a, p.b});
+      m["mode"] = collisionModeName(p.response.mode);
+      m["target"] = collisionTargetName(p.response.target);
+      m["resolution"] = collisionResolutionName(p.response.resolution);
+      modes.push(m);
+    }
+    j["collision_mode"] = modes;
+  }
+  j["collision_resolution"] = collisionResolutionName(o.collisionResolution);
+  j["collision_position_beyond_mm"] = o.collisionPositionBeyondMm;
   j["collision_final_sweeps"] = o.collisionFinalSweeps;
   j["separation_sweeps"] = o.separationSweeps;
   j["collision_side_test_every"] = o.collisionSideTestEvery;
@@ -459,6 +475,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     throw ParameterError("collision proximity", std::to_string(opts.collisionProximityMm), "must be in [0, 50] mm (0 = auto)");
   if (!(opts.boneMassRatio >= 1e-3 && opts.boneMassRatio <= 1e3))
     throw ParameterError("bone mass ratio", std::to_string(opts.boneMassRatio), "must be in [0.001, 1000]");
+  if (!(opts.collisionPositionBeyondMm >= 0))
+    throw ParameterError("collision position threshold", std::to_string(opts.collisionPositionBeyondMm), "must be >= 0 mm");
   if (opts.collisionFinalSweeps < 0 || opts.collisionFinalSweeps > 1000)
     throw ParameterError("collision sweeps", std::to_string(opts.collisionFinalSweeps), "must be 0..1000");
   if (opts.collisionSideTestEvery < 0 || opts.collisionSideTestEvery > 100000)
@@ -482,17 +500,18 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (float v : image.data)
     if (!std::isfinite(v)) throw Error("image has NaN/Inf voxels");
   if (scene.objects.empty()) throw Error("scene has no objects");
-  // Contacts are position corrections with a spring target (Table 4.23); the other modes and targets are not
-  // implemented, and a scene that asks for one is refused rather than run differently from what it says.
-  for (const CollisionPair& p : scene.collisions)
-    if (p.mode != CollisionMode::Position || p.target != CollisionTarget::Spring)
-      throw Error(scene.path + ": collision pair " + scene.objects[static_cast<size_t>(p.a)].name + "-" +
-                  scene.objects[static_cast<size_t>(p.b)].name + ": mode \"" + collisionModeName(p.mode) +
-                  "\" with target \"" + collisionTargetName(p.target) +
-                  "\" is not supported yet (only \"position\" with \"spring\")");
 
   SegmentationResult res;
   res.settings = resolveSettings(opts, image.grid);
+  // The response of each pair (Table 4.23: mode and target from the scene; resolution from the scene or the run).
+  auto pairResponse = [&](const CollisionPair& p) {
+    return CollisionResponse{p.mode, p.target, p.resolution.value_or(opts.collisionResolution),
+                             opts.collisionPositionBeyondMm};
+  };
+  if (opts.collisions)
+    for (const CollisionPair& p : scene.collisions)
+      res.settings.collisionResponses.push_back({scene.objects[static_cast<size_t>(p.a)].name,
+                                                 scene.objects[static_cast<size_t>(p.b)].name, pairResponse(p)});
   const ResolvedSettings& rs = res.settings;
   FeatureCache features(image);
   const auto te = Clock::now();
@@ -562,6 +581,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     // Each partner surface is set up once per level and its grid rebuilt once per step, shared by the sets against it.
     std::vector<std::unique_ptr<CollisionConstraints>> collide;  // pair k: [2k] = first against second, [2k+1] back
     std::map<size_t, std::shared_ptr<CollisionSurface>> surfaces;
+    // Pairs resolved globally: their sets are solved together, one system per mode (the sets alone do nothing).
+    std::map<CollisionMode, std::unique_ptr<GlobalCollisionResolution>> global;
     if (opts.collisions && !scene.collisions.empty()) {
       // Each surface must reach the largest gap + proximity of the pairs it is a partner in.
       std::map<size_t, double> reach;
@@ -578,16 +599,25 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         return it->second;
       };
       for (const CollisionPair& pair : scene.collisions)
-        for (auto [u, v] : {std::pair<size_t, size_t>(pair.a, pair.b), std::pair<size_t, size_t>(pair.b, pair.a)})
+        for (auto [u, v] : {std::pair<size_t, size_t>(pair.a, pair.b), std::pair<size_t, size_t>(pair.b, pair.a)}) {
+          const CollisionResponse response = pairResponse(pair);
           collide.push_back(std::make_unique<CollisionConstraints>(objs[u].first, objs[u].current.vertexCount(),
                                                                    surfaceOf(v), pairGap(pair), pairProximity(pair),
-                                                                   pairFriction(pair)));
+                                                                   pairFriction(pair), response));
+          if (response.resolution == CollisionResolution::Global) {
+            auto& g = global[response.mode];
+            if (!g) g = std::make_unique<GlobalCollisionResolution>(response.mode);
+            g->add(collide.back().get());
+          }
+        }
       res.collisionSetsBuilt += static_cast<int>(collide.size());
     }
     auto updateSurfaces = [&](const Points& p) {
       for (auto& kv : surfaces) kv.second->update(p);
     };
-    for (auto& c : collide) sets.push_back(c.get());
+    for (auto& c : collide)
+      if (c->response().resolution == CollisionResolution::Sequential) sets.push_back(c.get());
+    for (auto& kv : global) sets.push_back(kv.second.get());
     Solver solver(rs.solver);
     solver.prepare(x, invMass);
     LevelReport rep;
@@ -632,17 +662,26 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     }
     stepsDone = (order + 1) * rs.maxStepsPerLevel;
     if (l == 0 && !collide.empty()) {
-      // Clean-up: collision-only sweeps on the final positions, so no vertex is left inside a partner.
+      // Clean-up: collision-only sweeps on the final positions, so no vertex is left inside a partner. They are
+      // position corrections with each pair's target whatever its mode (the seed's robust practice: position first),
+      // sequential pairs one set after the other, then the global pairs solved together.
       const auto tc = Clock::now();
       Points p = solver.positions();
-      for (int sweep = 0; sweep < opts.collisionFinalSweeps; ++sweep)
+      for (int sweep = 0; sweep < opts.collisionFinalSweeps; ++sweep) {
         for (size_t k = 0; k < collide.size(); ++k) {
+          if (collide[k]->response().resolution != CollisionResolution::Sequential) continue;
           // Positions change with every projection here: the partner's grid is rebuilt before each detection.
           const CollisionPair& pair = scene.collisions[k / 2];
           surfaces.at(static_cast<size_t>(k % 2 == 0 ? pair.b : pair.a))->update(p);
           collide[k]->detect(p, sweep == 0);
-          collide[k]->project(p, solver.inverseMass());
+          collide[k]->projectPositions(p, solver.inverseMass());
         }
+        if (global.empty()) continue;
+        updateSurfaces(p);
+        for (auto& c : collide)
+          if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0);
+        for (auto& kv : global) kv.second->projectPositions(p, solver.inverseMass());
+      }
       solver.reset(p, solver.inverseMass());
       collisionDetectSeconds += since(tc);
     }

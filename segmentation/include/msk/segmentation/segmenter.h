@@ -54,6 +54,11 @@ struct SegmentOptions {
   double collisionProximityMm = 0;  ///< contact search reach beyond the gap (0 = max(1 mm, ½ the largest spacing))
   double collisionFriction = 0;     ///< default friction μ ∈ [0, 1]
   double boneMassRatio = 5;     ///< bone particles are this many times heavier than muscle ones (share less of a contact)
+  /// How pairs whose scene entry has no "resolution" resolve their contacts (sequential, or global conjugate gradient)
+  CollisionResolution collisionResolution = CollisionResolution::Sequential;
+  /// Velocity- and acceleration-mode pairs: a vertex more than this far inside its partner (mm, ≥ 0) gets a position
+  /// correction in the projection phase (CollisionResponse::positionBeyondMm; the seed's robust practice)
+  double collisionPositionBeyondMm = 0.0;
   int collisionFinalSweeps = 10;  ///< collision-only detect + project sweeps after the last step (penetration clean-up)
   int collisionSideTestEvery = 10;  ///< steps between inside/outside tests of contacts (winding number; 0 = first step only)
   int separationSweeps = 32;    ///< most sweeps of the output-surface separation of declared pairs (0 = none)
@@ -71,6 +76,12 @@ struct SegmentOptions {
   double jacobiOmega = 1.5;     ///< Jacobi relaxation ω ∈ (0, 2)
 };
 
+/// The collision response one pair used (names of its objects, mode, target, resolution).
+struct PairResponse {
+  std::string a, b;              ///< object names
+  CollisionResponse response;    ///< what was used
+};
+
 /// The settings a run actually used after the preset is applied (written into report.json).
 struct ResolvedSettings {
   int levels = 2, maxStepsPerLevel = 60;
@@ -78,6 +89,7 @@ struct ResolvedSettings {
   std::vector<double> sigmaMm;   ///< image scale per level, coarse first
   std::vector<double> rangeMm;   ///< search range per level, coarse first
   SolverOptions solver;          ///< the evolution scheme with all its settings (what Solver runs)
+  std::vector<PairResponse> collisionResponses;  ///< per scene pair (scene order), filled by segmentScene()
 };
 
 /// What one level of one object did.
