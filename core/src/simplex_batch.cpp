@@ -35,7 +35,8 @@ namespace {
 #endif
 
 /// The arrays one sweep reads and writes: positions and inverse masses seen from the set's first particle (Points is
-/// column-major, so x, y and z are each contiguous), the rows (one per vertex, in vertex order) and the colour order.
+/// column-major, so x, y and z are each contiguous), and the rows in the pass's order: vertex order (order unused) or
+/// colour order (order[i] the vertex of position i).
 struct BatchArrays {
   double *x, *y, *z;
   const double* w;
@@ -151,19 +152,20 @@ bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eig
 }
 
 
-/// One row by the literal formulas of simplexShapeTarget() + simplexInternalCorrection() (constraints.cpp) and the
-/// Solver's row test (W > 0 and finite, finite Δλ): the kernels' rare branch. Writes d = P̃ − P (mm) and the
+/// One row (at position `at` of the pass's order, vertex v) by the literal formulas of simplexShapeTarget() +
+/// simplexInternalCorrection() (constraints.cpp) and the Solver's row test (W > 0 and finite, finite Δλ): the kernels'
+/// rare branch. Writes d = P̃ − P (mm) and the
 /// coefficients cj, inverse masses included (ΔPj = cj d), to out[0..6]; false if the row is skipped.
-bool literalRow(const BatchArrays& a, int v, double gamma, double out[7]) {
-  const int idx[4] = {v, a.n0[v], a.n1[v], a.n2[v]};
+bool literalRow(const BatchArrays& a, int at, int v, double gamma, double out[7]) {
+  const int idx[4] = {v, a.n0[at], a.n1[at], a.n2[at]};
   Eigen::Vector3d pt[4];
   for (int j = 0; j < 4; ++j) pt[j] = Eigen::Vector3d(a.x[idx[j]], a.y[idx[j]], a.z[idx[j]]);
   const double w = a.w[v], wi[3] = {a.w[idx[1]], a.w[idx[2]], a.w[idx[3]]};
-  const double eps[3] = {a.e0[v], a.e1[v], a.e2[v]};
+  const double eps[3] = {a.e0[at], a.e1[at], a.e2[at]};
   double radius = 0;
   Eigen::Vector3d n;
   if (!triangleFrame(pt[1], pt[2], pt[3], radius, n)) return false;
-  const Eigen::Vector3d target = eps[0] * pt[1] + eps[1] * pt[2] + eps[2] * pt[3] + a.hr[v] * radius * n;
+  const Eigen::Vector3d target = eps[0] * pt[1] + eps[1] * pt[2] + eps[2] * pt[3] + a.hr[at] * radius * n;
   if (!target.allFinite()) return false;
   const Eigen::Vector3d d = target - pt[0];
   if (!d.allFinite()) return false;
@@ -390,6 +392,19 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
     eps2_[k] = eps(v, 2);
     hr_[k] = hOverR[v];
   }
+  // The same rows in colour order, for the Gauss–Seidel sweeps (contiguous loads there too).
+  for (auto* a : {&cnb0_, &cnb1_, &cnb2_}) a->resize(un);
+  for (auto* a : {&ceps0_, &ceps1_, &ceps2_, &chr_}) a->resize(un);
+  for (size_t i = 0; i < un; ++i) {
+    const size_t v = static_cast<size_t>(order_[i]);
+    cnb0_[i] = nb0_[v];
+    cnb1_[i] = nb1_[v];
+    cnb2_[i] = nb2_[v];
+    ceps0_[i] = eps0_[v];
+    ceps1_[i] = eps1_[v];
+    ceps2_[i] = eps2_[v];
+    chr_[i] = hr_[v];
+  }
   for (auto* a : {&dx_, &dy_, &dz_}) a->assign(un, 0.0);
   c_.assign(4 * un, 0.0);
   scale_.assign(un, 0.0);
@@ -449,7 +464,7 @@ BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const
 int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const {
   checkSizes(p, w);
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const BatchArrays a = arraysOf(p, w, first_, order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
 #if MSK_BATCH_AVX
   if (wide_) return lanes8::projectRows(a, gamma_, begin, end);
 #endif

@@ -83,6 +83,9 @@ class SimplexInternalBatch {
   std::vector<int> nb0_, nb1_, nb2_;        ///< each vertex's neighbours (local indices)
   std::vector<double> eps0_, eps1_, eps2_;  ///< reference ε̃i
   std::vector<double> hr_;                  ///< reference h̃ = h / r⊥ (scale-free height)
+  // The same per-row data in colour order (position i: vertex order_[i]), read by the Gauss–Seidel sweeps.
+  std::vector<int> cnb0_, cnb1_, cnb2_;
+  std::vector<double> ceps0_, ceps1_, ceps2_, chr_;
   // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = cj d, c_ holding slot j
   // of row r at j·n + r; scale_: each row's ω / count from scaleRange().
   std::vector<double> dx_, dy_, dz_, c_, scale_;
