@@ -55,7 +55,8 @@ struct JacobiOut {
 struct JacobiView {
   std::ptrdiff_t n;
   const int *flat, *row;
-  const double *c, *scale, *dx, *dy, *dz;
+  const double *c, *dx, *dy, *dz;
+  double post;  ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
 };
 
 // ------------------------------------------------------------------------------------------------ two lanes
@@ -139,7 +140,7 @@ inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0)
 
 /// Circumradius and unit normal (b−a)×(c−a)/|…| of triangle (a, b, c), as constraints.cpp computes them; false if
 /// degenerate.
-bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
+inline bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
                     Eigen::Vector3d& normal) {
   const Eigen::Vector3d x = (b - a).cross(c - a);
   const double twiceArea = x.norm();
@@ -407,7 +408,6 @@ SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double 
   }
   for (auto* a : {&dx_, &dy_, &dz_}) a->assign(un, 0.0);
   c_.assign(4 * un, 0.0);
-  scale_.assign(un, 0.0);
   // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
   revStart_.assign(un + 1, 0);
   for (int v = 0; v < n; ++v) {
@@ -525,18 +525,21 @@ void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omeg
   for (int v = begin; v < end; ++v) {
     const size_t r = static_cast<size_t>(v);
     const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
-    scale_[r] = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
+    const double scale = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
+    dx_[r] *= scale;
+    dy_[r] *= scale;
+    dz_[r] *= scale;
   }
 }
 
-void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const {
+void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double post) const {
   MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size(), "simplex internal batch: size mismatch");
   MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad particle range");
   double* x = p.data() + first_;
   double* y = x + p.rows();
   double* z = y + p.rows();
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), scale_.data(),
-                     dx_.data(), dy_.data(), dz_.data()};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), dx_.data(),
+                     dy_.data(), dz_.data(), post};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
@@ -549,29 +552,31 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const {
     double ax = 0, ay = 0, az = 0;
     for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e) {
       const size_t r = static_cast<size_t>(revRow_[static_cast<size_t>(e)]);
-      const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])] * scale_[r];
+      const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])];
       ax += c * dx_[r];
       ay += c * dy_[r];
       az += c * dz_[r];
     }
-    x[v] += ax;
-    y[v] += ay;
-    z[v] += az;
+    x[v] += post * ax;
+    y[v] += post * ay;
+    z[v] += post * az;
   }
 }
+
+void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { applyScaled(p, begin, end, 1.0); }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   const int skipped = computeRange(p, w, 0, size());
   const auto free = w.segment(first_, size()).array();
   if (skipped == 0 && uniform4_ && (free > 0).all()) {
     // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
-    std::fill(scale_.begin(), scale_.end(), omega / 4);
+    applyScaled(p, 0, size(), omega / 4);
   } else {
     ownCounts_.setZero(w.size());
     addCounts(w, ownCounts_);
     scaleRange(ownCounts_, omega, 0, size());
+    applyRange(p, 0, size());
   }
-  applyRange(p, 0, size());
   return skipped;
 }
 

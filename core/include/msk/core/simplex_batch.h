@@ -75,6 +75,8 @@ class SimplexInternalBatch {
 
  private:
   void checkSizes(const Points& p, const Eigen::VectorXd& w) const;
+  /// applyRange() with every sum times `post`.
+  void applyScaled(Points& p, int begin, int end, double post) const;
   bool wide_ = false;
   int first_ = 0;
   double gamma_;
@@ -86,9 +88,9 @@ class SimplexInternalBatch {
   // The same per-row data in colour order (position i: vertex order_[i]), read by the Gauss–Seidel sweeps.
   std::vector<int> cnb0_, cnb1_, cnb2_;
   std::vector<double> ceps0_, ceps1_, ceps2_, chr_;
-  // Jacobi corrections of the last computeRange(): d = P̃ − P and the coefficients cj, ΔPj = cj d, c_ holding slot j
-  // of row r at j·n + r; scale_: each row's ω / count from scaleRange().
-  std::vector<double> dx_, dy_, dz_, c_, scale_;
+  // Jacobi corrections of the last computeRange(): d = P̃ − P (times the row's ω / count after scaleRange()) and the
+  // coefficients cj, ΔPj = cj d, c_ holding slot j of row r at j·n + r.
+  std::vector<double> dx_, dy_, dz_, c_;
   // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_).
   std::vector<int> revStart_, revRow_, revFlat_;
   std::vector<int> tRow_, tFlat_;  ///< with uniform4_: the same, entry e of particle v at e·n + v
