@@ -140,8 +140,8 @@ inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0)
 
 /// Circumradius and unit normal (b−a)×(c−a)/|…| of triangle (a, b, c), as constraints.cpp computes them; false if
 /// degenerate.
-inline bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double& radius,
-                    Eigen::Vector3d& normal) {
+inline bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                          double& radius, Eigen::Vector3d& normal) {
   const Eigen::Vector3d x = (b - a).cross(c - a);
   const double twiceArea = x.norm();
   const double la = (b - c).norm(), lb = (c - a).norm(), lc = (a - b).norm();

@@ -3,8 +3,8 @@
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
 /// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, eight rows at a time (two 4-lane packs,
 /// hardware gathers) where the processor has AVX2 (chosen at run time; the build flags stay baseline), else two
-/// (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the Solver's per-row path (solver.h: ConstraintRow of
-/// SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
+/// (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the Solver's per-row path (solver.h:
+/// ConstraintRow of SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
 ///   SimplexInternalBatch b(reference, gamma);  b.setFirstParticle(first);     // once per set
