@@ -189,22 +189,22 @@ GlobalContactReport solveContactsGlobal(const std::vector<ContactRow>& rows, con
   double meanDiag = 0;
   for (const Scalar& s : sc) meanDiag += s.diag;
   meanDiag /= K;
-  const double eps = 1e-8 * meanDiag;  // keeps H positive definite where contacts are dependent
+  const double eps = std::max(0.0, opts.regularization) * meanDiag;  // bounds dependent contacts' multipliers
   Eigen::VectorXd wl(static_cast<Eigen::Index>(particle.size()));
   for (size_t i = 0; i < particle.size(); ++i) wl[static_cast<Eigen::Index>(i)] = w[particle[i]];
 
   std::vector<char> active(static_cast<size_t>(K), 1);
   Eigen::VectorXd F = Eigen::VectorXd::Zero(K);
-  Points acc(static_cast<Eigen::Index>(particle.size()), 3);
+  std::vector<Eigen::Vector3d> acc(particle.size());
   // out = (H + ε) y over the active rows, H_kl = Σ_{i∈k∩l} a_ik w_i a_il (d_k·d_l); `decouple`: inactive rows get
   // out = y (identity, zero right-hand side: they stay at W = 0), else (H y)_k for every row, y = 0 on inactive ones.
   auto applyH = [&](const Eigen::VectorXd& y, Eigen::VectorXd& out, bool decouple) {
-    acc.setZero();
+    std::fill(acc.begin(), acc.end(), Eigen::Vector3d::Zero());
     for (int k = 0; k < K; ++k) {
       if (!active[static_cast<size_t>(k)]) continue;
       const Scalar& s = sc[static_cast<size_t>(k)];
       const ContactRow& r = rows[static_cast<size_t>(s.contact)];
-      for (int j = 0; j < 4; ++j) acc.row(s.loc[static_cast<size_t>(j)]) += (r.weight[j] * y[k]) * s.dir.transpose();
+      for (int j = 0; j < 4; ++j) acc[static_cast<size_t>(s.loc[static_cast<size_t>(j)])] += (r.weight[j] * y[k]) * s.dir;
     }
     out.resize(K);
     for (int k = 0; k < K; ++k) {
@@ -218,7 +218,7 @@ GlobalContactReport solveContactsGlobal(const std::vector<ContactRow>& rows, con
       double v = on ? eps * y[k] : 0.0;
       for (int j = 0; j < 4; ++j) {
         const int li = s.loc[static_cast<size_t>(j)];
-        v += r.weight[j] * wl[li] * acc.row(li).dot(s.dir.transpose());
+        v += r.weight[j] * wl[li] * acc[static_cast<size_t>(li)].dot(s.dir);
       }
       out[k] = v;
     }
@@ -226,12 +226,20 @@ GlobalContactReport solveContactsGlobal(const std::vector<ContactRow>& rows, con
 
   const int rounds = std::max(1, opts.activeSetRounds);
   Eigen::VectorXd achieved;
+  double rzRef = 0;  // the first round's initial residual: the scale the tolerance is relative to
   for (int round = 0; round < rounds; ++round) {
-    // Jacobi-preconditioned conjugate gradient from W = 0 on (H + ε) W = Y.
+    // Jacobi-preconditioned conjugate gradient on (H + ε) W = Y, from the last round's W (0 on the rows let go).
     Eigen::VectorXd Y(K), r, z(K), d, hd;
-    for (int k = 0; k < K; ++k) Y[k] = active[static_cast<size_t>(k)] ? sc[static_cast<size_t>(k)].y : 0.0;
-    F.setZero();
-    r = Y;
+    for (int k = 0; k < K; ++k) {
+      Y[k] = active[static_cast<size_t>(k)] ? sc[static_cast<size_t>(k)].y : 0.0;
+      if (!active[static_cast<size_t>(k)]) F[k] = 0;
+    }
+    if (round == 0) {
+      r = Y;
+    } else {
+      applyH(F, hd, true);
+      r = Y - hd;
+    }
     auto precondition = [&] {
       for (int k = 0; k < K; ++k)
         z[k] = active[static_cast<size_t>(k)] ? r[k] / (sc[static_cast<size_t>(k)].diag + eps) : r[k];
@@ -239,9 +247,10 @@ GlobalContactReport solveContactsGlobal(const std::vector<ContactRow>& rows, con
     precondition();
     d = z;
     double rz = r.dot(z);
-    const double rz0 = rz;
+    if (round == 0) rzRef = rz;
+    const double rz0 = rzRef;
     double rel = 0;
-    if (rz0 > 0 && std::isfinite(rz0)) {
+    if (rz > opts.tolerance * opts.tolerance * rz0 && rz0 > 0 && std::isfinite(rz0)) {
       int it = 0;
       for (; it < opts.maxIterations; ++it) {
         applyH(d, hd, true);

@@ -625,6 +625,8 @@ GlobalCollisionResolution::GlobalCollisionResolution(CollisionMode mode, const G
     throw ParameterError("global collision cg iterations", std::to_string(opts.maxIterations), "must be at least 1");
   if (!(opts.tolerance > 0) || !std::isfinite(opts.tolerance))
     throw ParameterError("global collision cg tolerance", std::to_string(opts.tolerance), "must be positive");
+  if (!(opts.regularization >= 0) || !std::isfinite(opts.regularization))
+    throw ParameterError("global collision regularization", std::to_string(opts.regularization), "must be >= 0");
 }
 
 void GlobalCollisionResolution::add(CollisionConstraints* set) {

@@ -114,9 +114,11 @@ struct ContactRow {
 
 /// Settings of the global resolution.
 struct GlobalContactOptions {
-  int maxIterations = 200;    ///< conjugate-gradient iterations per solve (≥ 1)
-  double tolerance = 1e-10;   ///< stop when the preconditioned residual falls below this share of the first
-  int activeSetRounds = 8;    ///< most solves of the active-set loop over unilateral rows (1 = one plain solve)
+  int maxIterations = 100;    ///< conjugate-gradient iterations per solve (≥ 1)
+  double tolerance = 1e-4;    ///< stop when the preconditioned residual falls below this share of the first (> 0)
+  double regularization = 1e-6;  ///< ε added to H's diagonal, relative to its mean (≥ 0): bounds dependent contacts'
+                                 ///< multipliers and the conditioning; each contact then reaches its change to ~ε
+  int activeSetRounds = 4;    ///< most solves of the active-set loop over unilateral rows (1 = one plain solve)
 };
 
 /// What the last global solve did.
@@ -128,8 +130,9 @@ struct GlobalContactReport {
 };
 
 /// Global collision resolution (DESIGN-NOTES §5, thesis seed): solves Y = H W with Y_k = `rows[k].change`,
-/// H_kl = Σ_{i ∈ k∩l} a_ik w_i a_il (symmetric positive semi-definite; ε = 1e-8 × the mean diagonal added so that
-/// dependent contacts give a bounded solution, rows whose particles are all fixed left out), W_l = m_l ΔC_l the
+/// H_kl = Σ_{i ∈ k∩l} a_ik w_i a_il (d_k·d_l) over scalar rows along each contact's normal and its wanted tangential
+/// change d (symmetric positive semi-definite; opts.regularization × the mean diagonal added so that dependent
+/// contacts give a bounded solution, rows whose particles are all fixed left out), W_l = m_l ΔC_l the
 /// contact's multiplier, by Jacobi-preconditioned conjugate gradient on the three columns together, then applies
 /// ΔX_i = w_i Σ_k a_ik W_k to `q` (positions or velocities, #V×3), which conserves linear momentum. Unilateral rows
 /// (contacts may push, not pull) go through an active-set loop: a row whose multiplier pulls (W_k·n_k > 0) is let go,
