@@ -153,49 +153,6 @@ inline bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, co
 }
 
 
-/// One row (at position `at` of the pass's order, vertex v) by the literal formulas of simplexShapeTarget() +
-/// simplexInternalCorrection() (constraints.cpp) and the Solver's row test (W > 0 and finite, finite Δλ): the kernels'
-/// rare branch. Writes d = P̃ − P (mm) and the
-/// coefficients cj, inverse masses included (ΔPj = cj d), to out[0..6]; false if the row is skipped.
-bool literalRow(const BatchArrays& a, int at, int v, double gamma, double out[7]) {
-  const int idx[4] = {v, a.n0[at], a.n1[at], a.n2[at]};
-  Eigen::Vector3d pt[4];
-  for (int j = 0; j < 4; ++j) pt[j] = Eigen::Vector3d(a.x[idx[j]], a.y[idx[j]], a.z[idx[j]]);
-  const double w = a.w[v], wi[3] = {a.w[idx[1]], a.w[idx[2]], a.w[idx[3]]};
-  const double eps[3] = {a.e0[at], a.e1[at], a.e2[at]};
-  double radius = 0;
-  Eigen::Vector3d n;
-  if (!triangleFrame(pt[1], pt[2], pt[3], radius, n)) return false;
-  const Eigen::Vector3d target = eps[0] * pt[1] + eps[1] * pt[2] + eps[2] * pt[3] + a.hr[at] * radius * n;
-  if (!target.allFinite()) return false;
-  const Eigen::Vector3d d = target - pt[0];
-  if (!d.allFinite()) return false;
-  if (w <= 0 && wi[0] <= 0 && wi[1] <= 0 && wi[2] <= 0) return false;
-  const Eigen::Vector3d a1 = pt[1] - pt[0], a2 = pt[2] - pt[0], a3 = pt[3] - pt[0];
-  const Eigen::Vector3d mu(d.dot(a2.cross(a3)), d.dot(a3.cross(a1)), d.dot(a1.cross(a2)));
-  const double sumMu = mu.sum();
-  const Eigen::Vector3d epsV(eps[0], eps[1], eps[2]);
-  Eigen::Vector3d lambda = epsV;
-  if (std::fabs(sumMu) > 0.05 * mu.cwiseAbs().sum() && std::fabs(sumMu) > 0) {
-    lambda = mu / sumMu;
-    const double deviation = (lambda - epsV).cwiseAbs().maxCoeff();
-    if (deviation > 0.75) lambda = epsV + (0.75 / deviation) * (lambda - epsV);
-  }
-  const double plain = eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2];
-  double denom = w + eps[0] * lambda[0] * wi[0] + eps[1] * lambda[1] * wi[1] + eps[2] * lambda[2] * wi[2];
-  if (!(denom >= w + 0.5 * plain) || !std::isfinite(denom) || lambda.cwiseAbs().maxCoeff() > 3.0) {
-    lambda = epsV;
-    denom = w + plain;
-  }
-  if (!(denom > 0) || !std::isfinite(denom)) return false;
-  const double g = gamma / denom;
-  if (!(g * d).allFinite()) return false;
-  for (int c = 0; c < 3; ++c) out[c] = d[c];
-  out[3] = w * g;
-  for (int i = 0; i < 3; ++i) out[4 + i] = -wi[i] * lambda[i] * g;
-  return true;
-}
-
 /// Two indices (the 2-lane packs gather element by element).
 struct Idx2 {
   int i[2];
