@@ -168,6 +168,27 @@ INSTANTIATE_TEST_SUITE_P(Spheres, SimplexBatchAgreement,
                                            Case{0.8, 6.0, 0.7},   // rough surface, masses over six decades
                                            Case{2.0, 1.0, 1.0}));  // neighbourhoods folded over
 
+TEST(SimplexBatch, SmallMeshesWithPartialPacksMatchTheSolver) {
+  // 20 vertices: every sweep ends on a partial pack (8 or 2 rows at a time), in the rows and in the particles.
+  for (int offset : {0, 3}) {
+    const Problem pr = makeProblem(0, 0.3, 1.0, offset, 16, false);
+    const Points coloured = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
+    const Points jacobi = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.3);
+    for (bool wide : {false, true}) {
+      msk::SimplexInternalBatch batch(pr.reference, 0.9);
+      batch.setFirstParticle(offset);
+      batch.useWideLanes(wide);
+      Points p = pr.p0, q = pr.p0;
+      for (int it = 0; it < 2; ++it) {
+        batch.colouredSweep(p, pr.w);
+        batch.jacobiSweep(q, pr.w, 1.3);
+      }
+      EXPECT_LT(relativeDifference(p, coloured, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+      EXPECT_LT(relativeDifference(q, jacobi, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    }
+  }
+}
+
 TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {
   const msk::SimplexMesh m = msk::simplexFromTriangles(msk::makeIcosphere(10.0, 2));
   const msk::SimplexInternalBatch batch(m, 1.0);
