@@ -34,7 +34,7 @@ CellKey cellKey(const Eigen::Vector3d& c, double size) {
 }  // namespace
 
 WindingNumber::WindingNumber(const Points& vertices, const Triangles& faces, double clusterMm, double farFactor)
-    : f_(faces), far_(farFactor) {
+    : f_(faces), given_(faces), givenRows_(static_cast<int>(vertices.rows())), far_(farFactor) {
   if (!(farFactor >= 1) || !std::isfinite(farFactor))
     throw ParameterError("winding far factor", std::to_string(farFactor), "must be >= 1");
   const int nf = static_cast<int>(f_.rows());
@@ -120,7 +120,8 @@ WindingNumber::WindingNumber(const Points& vertices, const Triangles& faces, dou
   closeGroup();
 }
 
-double WindingNumber::at(const Eigen::Vector3d& q) const {
+template <class Corner>
+double WindingNumber::sum(const Eigen::Vector3d& q, const Corner& corner) const {
   auto dipole = [&](const Cluster& c, double& w) {
     const Eigen::Vector3d d = c.centre - q;
     const double dist = d.norm();
@@ -136,12 +137,20 @@ double WindingNumber::at(const Eigen::Vector3d& q) const {
       if (dipole(cl, w)) continue;
       for (int k = cl.begin; k < cl.end; ++k) {
         const int t = order_[static_cast<size_t>(k)];
-        w += triangleWindingNumber(q, v_.row(f_(t, 0)).transpose(), v_.row(f_(t, 1)).transpose(),
-                                   v_.row(f_(t, 2)).transpose());
+        w += triangleWindingNumber(q, corner(t, 0), corner(t, 1), corner(t, 2));
       }
     }
   }
   return w;
+}
+
+double WindingNumber::at(const Eigen::Vector3d& q) const {
+  return sum(q, [&](int t, int k) -> Eigen::Vector3d { return v_.row(f_(t, k)).transpose(); });
+}
+
+double WindingNumber::at(const Eigen::Vector3d& q, const Points& live) const {
+  if (live.rows() < givenRows_) throw Error("winding number: the live vertex array has fewer rows than the one given");
+  return sum(q, [&](int t, int k) -> Eigen::Vector3d { return live.row(given_(t, k)).transpose(); });
 }
 
 double WindingNumber::exactAt(const Eigen::Vector3d& q) const {

@@ -27,6 +27,13 @@ class WindingNumber {
   double at(const Eigen::Vector3d& q) const;
   /// at(q) > ½.
   bool inside(const Eigen::Vector3d& q) const { return at(q) > 0.5; }
+  /// The winding number at q of the surface at positions `live` (the array the faces given to the constructor index),
+  /// which may have moved since construction: the triangles summed one by one (near q) are taken at `live`, the far
+  /// clusters keep their dipoles. Exact near q however far the nearby triangles moved; the far field stays right
+  /// while the motion is small against the clusters' distance. Throws Error if `live` has too few rows.
+  double at(const Eigen::Vector3d& q, const Points& live) const;
+  /// at(q, live) > ½.
+  bool inside(const Eigen::Vector3d& q, const Points& live) const { return at(q, live) > 0.5; }
   /// Exact sum over every triangle (reference for tests; O(#F)).
   double exactAt(const Eigen::Vector3d& q) const;
 
@@ -37,8 +44,13 @@ class WindingNumber {
     double radius = 0;                                 ///< largest distance from the centre to a corner
     int begin = 0, end = 0;                            ///< its triangles: order_[begin, end)
   };
+  /// Sum over the groups and clusters at q; `corner(t, k)` gives corner k of triangle t.
+  template <class Corner>
+  double sum(const Eigen::Vector3d& q, const Corner& corner) const;
   Points v_;
   Triangles f_;
+  Triangles given_;  ///< the faces as given (indices into the caller's vertex array)
+  int givenRows_ = 0;  ///< rows of the vertex array given to the constructor
   double far_;
   std::vector<Cluster> clusters_;  ///< fine clusters, grouped: group g owns clusters_[groups_[g].begin, end)
   std::vector<Cluster> groups_;    ///< coarse groups of clusters (begin/end index clusters_)
