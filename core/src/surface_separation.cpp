@@ -2,13 +2,18 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <functional>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "msk/core/collision_surface.h"
 #include "msk/core/constraints.h"
 #include "msk/core/error.h"
 #include "msk/core/winding_number.h"
+#include "worker_pool.h"
 
 namespace msk {
 
@@ -86,10 +91,15 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     bool inside = false;
     if (s.distance > 1e-12) {
       // Between refreshes the side carries over from the last contact, unless the closest point has jumped (to the
-      // other side of a thin partner, say): then the winding number decides.
+      // other side of a thin partner, say): then the winding number decides. A carried side only rules out work: a sample it places outside beyond half the gap is left alone. Every
+      // sample that would be corrected has its side confirmed by the winding number at B's current positions (B
+      // moves during the pass), since a wrong side there would move the sample the gap's depth into B.
       const bool carry = !refresh && (s.point - active[static_cast<size_t>(i)].contact).norm() < 0.5;
-      if (!carry && !winding) winding.emplace(B.vertices, B.faces);
-      inside = carry ? (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0 : winding->inside(q);
+      inside = carry && (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0;
+      if (!carry || inside || s.distance < 0.5 * gap) {
+        if (!winding) winding.emplace(B.vertices, B.faces);
+        inside = winding->inside(q, B.vertices);
+      }
       normal = (inside ? -1.0 : 1.0) * (q - s.point) / s.distance;
     } else {
       normal = surface.pseudonormal(B.vertices, s);
@@ -134,6 +144,8 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     throw ParameterError("separation reach", std::to_string(opts.maxReachMm), "the largest reach must be >= the reach");
   if (!(opts.toleranceMm > 0) || !std::isfinite(opts.toleranceMm))
     throw ParameterError("separation tolerance", std::to_string(opts.toleranceMm), "must be > 0 mm");
+  if (opts.threads < 0 || opts.threads > 1024)
+    throw ParameterError("separation threads", std::to_string(opts.threads), "must be 0..1024");
   for (double w : inverseMass)
     if (!(w >= 0) || !std::isfinite(w)) throw Error("separation: inverse masses must be finite and non-negative");
   for (const SeparationPair& p : pairs) {
@@ -150,16 +162,69 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   // side from the winding number) comes every kRefresh sweeps and before the run may stop, so a sample pushed into a
   // partner by another pair's corrections is caught.
   constexpr int kRefresh = 4;
-  std::vector<std::vector<ActiveSample>> active(2 * pairs.size());
-  std::vector<bool> far(pairs.size(), false);
+  const size_t np = pairs.size();
+  std::vector<std::vector<ActiveSample>> active(2 * np);
+  std::vector<bool> far(np, false);
+  // Pairs are coloured so that the pairs of one colour share no surface: they run in parallel, and the result does
+  // not depend on the thread count (colours in order, pairs of a colour independent).
+  std::vector<std::vector<int>> colours;
+  for (size_t k = 0; k < np; ++k) {
+    size_t c = 0;
+    for (; c < colours.size(); ++c) {
+      bool clash = false;
+      for (int o : colours[c]) {
+        const SeparationPair& q = pairs[static_cast<size_t>(o)];
+        clash = clash || q.a == pairs[k].a || q.a == pairs[k].b || q.b == pairs[k].a || q.b == pairs[k].b;
+      }
+      if (!clash) break;
+    }
+    if (c == colours.size()) colours.emplace_back();
+    colours[c].push_back(static_cast<int>(k));
+  }
+  WorkerPool pool(std::max(1, opts.threads > 0 ? opts.threads
+                                               : static_cast<int>(std::thread::hardware_concurrency())));
   // A pair already deeper inside each other than the reach gets a reach that covers its deepest vertex.
-  std::vector<double> reach(pairs.size(), opts.reachMm);
-  for (size_t k = 0; k < pairs.size(); ++k) {
+  std::vector<double> reach(np, opts.reachMm);
+  // Worker bodies must not throw: the first error is kept and rethrown on the caller.
+  std::exception_ptr failure;
+  std::mutex failureMutex;
+  auto guarded = [&](const std::function<void(int, int)>& body) {
+    return [&, body](int begin, int end) {
+      try {
+        body(begin, end);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failureMutex);
+        if (!failure) failure = std::current_exception();
+      }
+    };
+  };
+  pool.run(static_cast<int>(np), guarded([&](int begin, int end) {
+    for (int k = begin; k < end; ++k) {
+      const TriangleMesh& A = *surfaces[static_cast<size_t>(pairs[static_cast<size_t>(k)].a)];
+      const TriangleMesh& B = *surfaces[static_cast<size_t>(pairs[static_cast<size_t>(k)].b)];
+      const double deepest =
+          std::max(penetrationDepth(A, B, opts.maxReachMm), penetrationDepth(B, A, opts.maxReachMm));
+      reach[static_cast<size_t>(k)] =
+          std::min(opts.maxReachMm, std::max(opts.reachMm, deepest + pairs[static_cast<size_t>(k)].gapMm + 0.5));
+    }
+  }), 1);
+  if (failure) std::rethrow_exception(failure);
+  for (size_t k = 0; k < np; ++k) {  // pairs whose boxes are farther apart than the reach are never tested
     const TriangleMesh& A = *surfaces[static_cast<size_t>(pairs[k].a)];
     const TriangleMesh& B = *surfaces[static_cast<size_t>(pairs[k].b)];
-    const double deepest = std::max(penetrationDepth(A, B, opts.maxReachMm), penetrationDepth(B, A, opts.maxReachMm));
-    reach[k] = std::min(opts.maxReachMm, std::max(opts.reachMm, deepest + pairs[k].gapMm + 0.5));
+    const Eigen::Vector3d loA = A.vertices.colwise().minCoeff(), hiA = A.vertices.colwise().maxCoeff();
+    const Eigen::Vector3d loB = B.vertices.colwise().minCoeff(), hiB = B.vertices.colwise().maxCoeff();
+    far[k] = ((loA.array() - reach[k]) > hiB.array()).any() || ((loB.array() - reach[k]) > hiA.array()).any();
   }
+  // A pair whose refresh found nothing inside and corrected nothing is settled; it is skipped for as long as neither
+  // of its surfaces is changed by another pair (versions count the passes that moved a surface).
+  std::vector<long> version(surfaces.size(), 0);
+  std::vector<long> settledAt(np, -1);  ///< the larger version of the pair's surfaces when it was found settled
+  auto pairVersion = [&](size_t k) {
+    return std::max(version[static_cast<size_t>(pairs[k].a)], version[static_cast<size_t>(pairs[k].b)]);
+  };
+  std::vector<PassResult> results(np);
+  std::vector<long> examinedAt(np, -1);
   int sinceRefresh = 0;
   bool settled = false;
   for (int sweep = 0; sweep < opts.maxSweeps; ++sweep) {
@@ -168,26 +233,45 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     long applied = 0;
     double largest = 0;
     bool anyInside = false;
-    for (size_t k = 0; k < pairs.size(); ++k) {
-      const SeparationPair& p = pairs[k];
-      TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
-      TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
-      const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
-      if (sweep == 0) {  // pairs whose boxes are farther apart than the reach are never tested
-        const Eigen::Vector3d loA = A.vertices.colwise().minCoeff(), hiA = A.vertices.colwise().maxCoeff();
-        const Eigen::Vector3d loB = B.vertices.colwise().minCoeff(), hiB = B.vertices.colwise().maxCoeff();
-        far[k] = ((loA.array() - reach[k]) > hiB.array()).any() || ((loB.array() - reach[k]) > hiA.array()).any();
-      }
-      if (far[k]) continue;
-      for (int d = 0; d < 2; ++d) {
-        std::vector<ActiveSample>& act = active[2 * k + static_cast<size_t>(d)];
-        const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
-                                    : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
+    for (const std::vector<int>& colour : colours) {
+      pool.run(static_cast<int>(colour.size()), guarded([&](int begin, int end) {
+        for (int c = begin; c < end; ++c) {
+          const size_t k = static_cast<size_t>(colour[static_cast<size_t>(c)]);
+          results[k] = PassResult{};
+          if (far[k] || (settledAt[k] >= 0 && pairVersion(k) == settledAt[k])) continue;
+          const SeparationPair& p = pairs[k];
+          TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
+          TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
+          const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
+          for (int d = 0; d < 2; ++d) {
+            std::vector<ActiveSample>& act = active[2 * k + static_cast<size_t>(d)];
+            const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
+                                        : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
+            results[k].applied += r.applied;
+            results[k].largestMm = std::max(results[k].largestMm, r.largestMm);
+            results[k].anyInside = results[k].anyInside || r.anyInside;
+          }
+        }
+      }), 1);
+      if (failure) std::rethrow_exception(failure);
+      // Bookkeeping after the colour, in pair order (independent of the threads).
+      for (int k : colour) {
+        const PassResult& r = results[static_cast<size_t>(k)];
+        if (r.applied > 0) {
+          ++version[static_cast<size_t>(pairs[static_cast<size_t>(k)].a)];
+          ++version[static_cast<size_t>(pairs[static_cast<size_t>(k)].b)];
+        }
+        examinedAt[static_cast<size_t>(k)] = pairVersion(static_cast<size_t>(k));
         applied += r.applied;
         largest = std::max(largest, r.largestMm);
         anyInside = anyInside || r.anyInside;
       }
     }
+    // Pairs examined in a refresh that needed nothing are settled at the versions they were examined at (a later
+    // colour that moved one of their surfaces has changed that version, which unsettles them).
+    if (refresh)
+      for (size_t k = 0; k < np; ++k)
+        if (!far[k] && results[k].applied == 0 && !results[k].anyInside) settledAt[k] = examinedAt[k];
     ++rep.sweeps;
     rep.corrections += applied;
     // Done when a refresh sweep finds nothing inside a partner. Between refreshes, a sweep that found nothing inside

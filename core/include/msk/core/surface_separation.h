@@ -15,6 +15,7 @@ struct SeparationOptions {
   double maxReachMm = 10.0;  ///< a pair found deeper inside each other gets a reach covering its deepest vertex, up to this
   int maxSweeps = 32;    ///< sweeps over every pair and direction
   double toleranceMm = 0.05;  ///< a sweep that found nothing inside and corrected nothing by more calls the check, mm
+  int threads = 1;  ///< threads (0 = all cores); pairs sharing no surface run together, same result for any count
 };
 
 /// One declared pair of surfaces (indices into the surfaces given) and the clearance kept between them.
@@ -31,7 +32,9 @@ struct SeparationReport {
 };
 
 /// Moves the surfaces' vertices (in place) until a full check (every sample, side from the winding number) finds no
-/// sample (vertex or face centroid) of either surface of a pair inside the other, or maxSweeps is reached. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
+/// sample (vertex or face centroid) of either surface of a pair inside the other, or maxSweeps is reached. Pairs that
+/// share no surface run in parallel (colour by colour, so any thread count gives the same surfaces); a pair found with
+/// nothing to do is skipped until another pair moves one of its surfaces. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
 /// surface (a bone) moves less. Throws ParameterError for bad options or pair indices, Error on size mismatches.
 SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
                                   const std::vector<SeparationPair>& pairs, const SeparationOptions& opts = {});
