@@ -1,10 +1,16 @@
-// Closed mesh → label map by scanline parity along the grid's i axis, in continuous voxel coordinates.
+// Closed mesh → label map by scanlines along the grid's i axis, in continuous voxel coordinates. A voxel is inside where
+// the mesh's winding number is positive (signed crossings, not parity): for a surface without self-intersections the
+// two agree; where an evolved surface folds over itself, a sheet turned inside out (winding number −1) is not taken
+// for the object, and a region it covers twice (2) is not left as a hole.
 #include "msk/imaging/rasterize.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 #include <vector>
+
+#include <Eigen/LU>
 
 #include "msk/core/error.h"
 
@@ -86,8 +92,11 @@ void rasterizeInto(LabelMap& labels, const TriangleMesh& mesh, int32_t label) {
     }
   }
 
-  // Each row: crossings of the line (·, j, k) with the triangles, sorted; fill between pairs.
-  std::vector<double> hits;
+  // Each row: crossings of the line (·, j, k) with the triangles, sorted, each +1 where the ray enters (the face's
+  // normal points toward −i) and −1 where it leaves; voxels between crossings where the running sum is positive are
+  // filled.
+  std::vector<std::pair<double, int>> hits;
+  const bool rightHanded = g.direction.determinant() > 0;
   for (int k = 0; k < nk; ++k) {
     for (int j = 0; j < nj; ++j) {
       const size_t row = static_cast<size_t>(j) + static_cast<size_t>(nj) * k;
@@ -106,14 +115,19 @@ void rasterizeInto(LabelMap& labels, const TriangleMesh& mesh, int32_t label) {
         if (sa == 0 || sa != sb || sb != sc) continue;
         const double sum = wa + wb + wc;
         if (sum == 0) continue;  // zero projected area: a perturbed ray cannot cross it
-        hits.push_back((wa * a[0] + wb * bb[0] + wc * c[0]) / sum);
+        // The edge functions sum to the i component of (b − a) × (c − a): the face's normal points along +i when the
+        // sum is positive, and the ray leaves the object there
+        // (in voxel coordinates, whose handedness is that of the grid's direction matrix).
+        hits.push_back({(wa * a[0] + wb * bb[0] + wc * c[0]) / sum, (sum > 0) == rightHanded ? -1 : 1});
       }
       if (hits.size() < 2) continue;
       std::sort(hits.begin(), hits.end());
-      for (size_t h = 0; h + 1 < hits.size(); h += 2) {
-        if (hits[h] > ni - 1 || hits[h + 1] < 0) continue;
-        const int i0 = clampToIndex(std::ceil(hits[h]), ni);
-        const int i1 = clampToIndex(std::floor(hits[h + 1]), ni);
+      int winding = 0;
+      for (size_t h = 0; h + 1 < hits.size(); ++h) {
+        winding += hits[h].second;
+        if (winding <= 0 || hits[h].first > ni - 1 || hits[h + 1].first < 0) continue;
+        const int i0 = clampToIndex(std::ceil(hits[h].first), ni);
+        const int i1 = clampToIndex(std::floor(hits[h + 1].first), ni);
         int32_t* out = labels.data.data() + g.index(0, j, k);
         for (int i = i0; i <= i1; ++i) out[i] = label;
       }

@@ -174,3 +174,43 @@ TEST(Rasterize, OpenMeshThrows) {
 }
 
 }  // namespace
+
+// A folded surface covers some points twice and turns some sheets inside out. The label follows the winding number
+// (inside where it is positive), not the parity of crossings: a region covered twice is filled (parity would leave a
+// hole) and a region enclosed only by a turned-over sheet (winding number −1) is left out (parity would fill it).
+TEST(Rasterize, FollowsTheWindingNumberWhereTheSurfaceFolds) {
+  auto join = [](const msk::TriangleMesh& a, msk::TriangleMesh b, bool flipB) {
+    if (flipB) b.faces.col(1).swap(b.faces.col(2));
+    msk::TriangleMesh m = a;
+    m.vertices.conservativeResize(a.vertexCount() + b.vertexCount(), 3);
+    m.vertices.bottomRows(b.vertexCount()) = b.vertices;
+    m.faces.conservativeResize(a.faceCount() + b.faceCount(), 3);
+    m.faces.bottomRows(b.faceCount()) = b.faces.array() + a.vertexCount();
+    return m;
+  };
+  const msk::TriangleMesh a = msk::makeIcosphere(6.0, 3, {0, 0, 0}), b = msk::makeIcosphere(6.0, 3, {6.3, 0.2, 0.1});
+  msk::Grid g;
+  g.dims = {40, 30, 30};
+  g.spacing = {0.5, 0.5, 0.5};
+  g.origin = {-8.1, -7.3, -7.2};
+  auto at = [&](const msk::LabelMap& l, const Eigen::Vector3d& p) {
+    const Eigen::Vector3d v = g.toVoxel(p);
+    return l.at(static_cast<int>(std::lround(v.x())), static_cast<int>(std::lround(v.y())),
+                static_cast<int>(std::lround(v.z())));
+  };
+  const msk::LabelMap twice = msk::rasterize(join(a, b, false), g);
+  EXPECT_NE(at(twice, {3.1, 0, 0}), 0);   // covered twice (both spheres)
+  EXPECT_NE(at(twice, {-3, 0, 0}), 0);    // once (a only)
+  EXPECT_NE(at(twice, {9.5, 0, 0}), 0);   // once (b only)
+  const msk::LabelMap turned = msk::rasterize(join(a, b, true), g);
+  EXPECT_NE(at(turned, {-3, 0, 0}), 0);   // a only: winding number 1
+  EXPECT_EQ(at(turned, {3.1, 0, 0}), 0);  // a and the turned sheet: 0
+  EXPECT_EQ(at(turned, {9.5, 0, 0}), 0);  // the turned sheet only: −1
+  // Volumes: the union, and a minus b.
+  size_t nTwice = 0, nTurned = 0;
+  for (size_t i = 0; i < twice.data.size(); ++i) {
+    nTwice += twice.data[i] != 0;
+    nTurned += turned.data[i] != 0;
+  }
+  EXPECT_GT(nTwice, nTurned * 2);
+}
