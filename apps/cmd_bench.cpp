@@ -141,6 +141,7 @@ int benchScene(const std::vector<std::string>& argv) {
     throw ParameterError("--vertices", std::to_string(vertices), "must be in 100..1000000");
   popts.meshVertices = static_cast<int>(vertices);
   const std::string out = args.str("out", "");
+  if (!out.empty()) checkOutputFolder(out);
 
   const Clock::time_point start = Clock::now();
   const double cpuStart = cpuSeconds();
@@ -477,6 +478,7 @@ int benchTradeoff(const std::vector<std::string>& argv) {
   const long threads = args.integer("threads", 1);
   if (threads < 0 || threads > 1024) throw ParameterError("--threads", args.str("threads"), "must be 0..1024");
   const std::string out = args.str("out");
+  checkOutputFolder(out);
   // Hidden subset options (tests, quick looks): --schemes a,b (scheme names or "none") and --presets x,y ("none").
   std::vector<TradeoffConfig> configs;
   {

@@ -47,6 +47,7 @@ int cmdPhantom(const std::vector<std::string>& argv) {
     throw ParameterError("--structures", std::to_string(structures),
                          "must be 4 (thigh) or " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs)");
   const std::string out = args.str("out");
+  checkOutputFolder(out);
   Phantom p = structures == 4 ? makePhantom(opts, stderrProgress("phantom"))
                               : makeMultiPhantom(opts, stderrProgress("phantom"));
   writeFolderAtomically(out, [&](const std::string& staging) { writePhantom(p, opts, staging); });

@@ -127,6 +127,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     if (!(v >= 0 && v <= 1)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
 
   const std::string imagePath = args.str("image"), scenePath = args.str("scene"), out = args.str("out");
+  checkOutputFolder(out);
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
   const Scene scene = loadScene(scenePath);

@@ -28,6 +28,10 @@ int cmdBench(const std::vector<std::string>& args);
 /// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
 ProgressFn stderrProgress(const std::string& task);
 
+/// Throws IoError naming `dir` if it cannot become an output folder (its parent is missing, or it is a file): called
+/// before long work, so that a mistyped --out fails at once rather than after the run.
+void checkOutputFolder(const std::string& dir);
+
 /// Writes into a staging folder beside `dir`, then moves the files into `dir` (created if needed); on error the
 /// staging folder is removed and nothing appears in `dir`.
 void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string& staging)>& write);

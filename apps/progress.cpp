@@ -39,13 +39,24 @@ ProgressFn stderrProgress(const std::string& task) {
   };
 }
 
-void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string&)>& write) {
+namespace {
+/// The absolute target folder of `dir`, after checking that it can be written (see checkOutputFolder()).
+fs::path checkedTarget(const std::string& dir) {
   fs::path target = fs::absolute(dir).lexically_normal();
   if (target.filename().empty()) target = target.parent_path();
   std::error_code ec;
   if (fs::exists(target, ec) && !fs::is_directory(target, ec)) throw IoError(dir, "exists and is not a folder");
+  if (!fs::is_directory(target.parent_path(), ec)) throw IoError(dir, "parent folder does not exist");
+  return target;
+}
+}  // namespace
+
+void checkOutputFolder(const std::string& dir) { checkedTarget(dir); }
+
+void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string&)>& write) {
+  const fs::path target = checkedTarget(dir);
+  std::error_code ec;
   fs::path parent = target.parent_path();
-  if (!fs::is_directory(parent, ec)) throw IoError(dir, "parent folder does not exist");
   fs::path staging = parent / ("." + target.filename().string() + ".partial" + std::to_string(::getpid()));
   fs::remove_all(staging, ec);
   if (!fs::create_directory(staging, ec)) throw IoError(staging.string(), "cannot create folder: " + ec.message());

@@ -171,3 +171,23 @@ TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
     EXPECT_TRUE(dir.list().empty()) << "partial output after " << args[0];
   }
 }
+
+// A mistyped --out (parent folder missing, or a file) fails at once, before the phantom is built or the scene
+// segmented, with one line naming the folder.
+TEST(Cli, BadOutputFolderFailsBeforeTheWork) {
+  ScratchDir dir;
+  msk::test::writeBytes(dir.file("afile"), "x");
+  for (const std::string& out : {dir.file("missing/p"), dir.file("afile")}) {
+    const std::string phrase = out == dir.file("afile") ? "not a folder" : "parent folder does not exist";
+    for (const std::vector<std::string>& cmd :
+         {std::vector<std::string>{"phantom", "--seed", "1", "--out", out},
+          std::vector<std::string>{"segment", "--image", dir.file("none.nii.gz"), "--scene", dir.file("none.json"),
+                                   "--out", out},
+          std::vector<std::string>{"bench", "scene", "--structures", "4", "--out", out},
+          std::vector<std::string>{"bench", "tradeoff", "--phantoms", "1", "--out", out}}) {
+      const CliResult r = runCli(cmd);
+      expectOneLineError(r, 1, out, phrase);
+      EXPECT_EQ(r.err.find('%'), std::string::npos) << cmd[0] << ": work started before the check: " << r.err;
+    }
+  }
+}
