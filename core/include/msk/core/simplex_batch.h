@@ -44,7 +44,7 @@ class SimplexInternalBatch {
   /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
   /// The AVX2 path (8 rows at a time) where the processor has it (the default), or the SSE2 one (2 rows) with `on` =
-  /// false. Both give the per-row path's corrections up to rounding, but not bitwise the same ones.
+  /// false. Both run the same operations lane by lane, so their results are bitwise the same.
   void useWideLanes(bool on);
   /// Whether the sweeps take the AVX2 path.
   bool wideLanes() const { return wide_; }
