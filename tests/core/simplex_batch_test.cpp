@@ -190,6 +190,26 @@ TEST(SimplexBatch, SmallMeshesWithPartialPacksMatchTheSolver) {
   }
 }
 
+TEST(SimplexBatch, IrregularNeighbourTablesTakeTheGeneralJacobiPathAndMatchTheSolver) {
+  // One neighbour redirected: particles no longer sit in exactly 4 rows, so counts and the apply take the CSR path.
+  Problem pr = makeProblem(2, 0.3, 1.0, 4, 18, false);
+  pr.reference.neighbors(0, 2) = pr.reference.vertexCount() / 2;
+  const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.5);
+  const Points colouredExpected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
+  for (bool wide : {false, true}) {
+    msk::SimplexInternalBatch batch(pr.reference, 0.9);
+    batch.setFirstParticle(pr.offset);
+    batch.useWideLanes(wide);
+    Points p = pr.p0, q = pr.p0;
+    for (int it = 0; it < 2; ++it) {
+      batch.jacobiSweep(p, pr.w, 1.5);
+      batch.colouredSweep(q, pr.w);
+    }
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(q, colouredExpected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+  }
+}
+
 TEST(SimplexBatch, BothLaneWidthsGiveBitwiseTheSameSweeps) {
   const Problem pr = makeProblem(4, 0.8, 2.0, 2, 17);
   for (bool jacobi : {false, true}) {
