@@ -126,22 +126,22 @@ bool targetCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d& target, d
 
 // ------------------------------------------------------------------------------------------------ internal set
 
-SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode)
-    : nb_(reference.neighbors), gamma_(gamma), mode_(mode) {
-  checkUnitInterval("internal stiffness", gamma);
-  MSK_ASSERT(reference.k == 2 && nb_.cols() == 3, "2-simplex mesh expected");
+void simplexReferenceParameters(const SimplexMesh& reference, Eigen::MatrixX3d& eps, Eigen::VectorXd& hOverR) {
+  const NeighborTable& nb = reference.neighbors;
+  MSK_ASSERT(reference.k == 2 && nb.cols() == 3 && nb.rows() == reference.vertexCount(), "2-simplex mesh expected");
   const int n = reference.vertexCount();
-  eps_.resize(n, 3);
-  hOverR_.resize(n);
+  eps.resize(n, 3);
+  hOverR.resize(n);
   for (int v = 0; v < n; ++v) {
-    Eigen::Vector3d pi[3] = {reference.positions.row(nb_(v, 0)), reference.positions.row(nb_(v, 1)),
-                             reference.positions.row(nb_(v, 2))};
+    for (int j = 0; j < 3; ++j) MSK_ASSERT(nb(v, j) >= 0 && nb(v, j) < n, "neighbour index out of range");
+    const Eigen::Vector3d pi[3] = {reference.positions.row(nb(v, 0)), reference.positions.row(nb(v, 1)),
+                                   reference.positions.row(nb(v, 2))};
     const Eigen::Vector3d p = reference.positions.row(v);
     double r = 0;
     Eigen::Vector3d nrm;
     if (!triangleFrame(pi[0], pi[1], pi[2], r, nrm)) {
-      eps_.row(v).setConstant(1.0 / 3.0);
-      hOverR_[v] = 0;
+      eps.row(v).setConstant(1.0 / 3.0);
+      hOverR[v] = 0;
       continue;
     }
     // Barycentric coordinates of P's projection on the neighbours' plane.
@@ -151,9 +151,23 @@ SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& refere
     const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = f.dot(e0), d21 = f.dot(e1);
     const double den = d00 * d11 - d01 * d01;
     const double b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den;
-    eps_.row(v) << 1.0 - b1 - b2, b1, b2;
-    hOverR_[v] = h / r;
+    eps.row(v) << 1.0 - b1 - b2, b1, b2;
+    hOverR[v] = h / r;
   }
+}
+
+SimplexInternalConstraints::SimplexInternalConstraints(const SimplexMesh& reference, double gamma, InternalMode mode)
+    : nb_(reference.neighbors), gamma_(gamma), mode_(mode) {
+  checkUnitInterval("internal stiffness", gamma);
+  MSK_ASSERT(reference.k == 2 && nb_.cols() == 3, "2-simplex mesh expected");
+  simplexReferenceParameters(reference, eps_, hOverR_);
+}
+
+SimplexInternalBatch* SimplexInternalConstraints::batch() {
+  if (mode_ != InternalMode::ShapeMemory) return nullptr;
+  if (!batch_) batch_ = std::make_unique<SimplexInternalBatch>(nb_, eps_, hOverR_, gamma_);
+  batch_->setFirstParticle(first_);
+  return batch_.get();
 }
 
 Eigen::VectorXd SimplexInternalConstraints::smoothingHeights(const Eigen::Ref<const Points>& p) const {

@@ -21,6 +21,7 @@
 #define MSK_BATCH_AVX 0
 #endif
 
+#include "msk/core/constraints.h"
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
 
@@ -137,21 +138,6 @@ inline D2 select(D2 m, D2 a, D2 b) { return {{isSet(m.v[0]) ? a.v[0] : b.v[0], i
 inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { return std::signbit(y) ? -x : x; }); }
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
 #endif
-
-/// Circumradius and unit normal (b−a)×(c−a)/|…| of triangle (a, b, c), as constraints.cpp computes them; false if
-/// degenerate.
-inline bool triangleFrame(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                          double& radius, Eigen::Vector3d& normal) {
-  const Eigen::Vector3d x = (b - a).cross(c - a);
-  const double twiceArea = x.norm();
-  const double la = (b - c).norm(), lb = (c - a).norm(), lc = (a - b).norm();
-  const double scale = std::max({la, lb, lc});
-  if (!(twiceArea > 1e-12 * scale * scale) || !std::isfinite(twiceArea)) return false;
-  radius = la * lb * lc / (2.0 * twiceArea);
-  normal = x / twiceArea;
-  return true;
-}
-
 
 /// Two indices (the 2-lane packs gather element by element).
 struct Idx2 {
@@ -296,33 +282,24 @@ bool avxAvailable() { return false; }
 
 SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double gamma) : gamma_(gamma) {
   checkUnitInterval("internal stiffness", gamma);
-  const NeighborTable& nb = reference.neighbors;
-  MSK_ASSERT(reference.k == 2 && nb.cols() == 3 && nb.rows() == reference.vertexCount(), "2-simplex mesh expected");
-  const int n = reference.vertexCount();
-  // Reference metric parameters, exactly as SimplexInternalConstraints computes them.
-  Eigen::MatrixX3d eps(n, 3);
-  Eigen::VectorXd hOverR(n);
-  for (int v = 0; v < n; ++v) {
+  Eigen::MatrixX3d eps;
+  Eigen::VectorXd hOverR;
+  simplexReferenceParameters(reference, eps, hOverR);
+  build(reference.neighbors, eps, hOverR);
+}
+
+SimplexInternalBatch::SimplexInternalBatch(const NeighborTable& nb, const Eigen::MatrixX3d& eps,
+                                           const Eigen::VectorXd& hOverR, double gamma)
+    : gamma_(gamma) {
+  checkUnitInterval("internal stiffness", gamma);
+  build(nb, eps, hOverR);
+}
+
+void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR) {
+  const int n = static_cast<int>(nb.rows());
+  MSK_ASSERT(nb.cols() == 3 && eps.rows() == n && hOverR.size() == n, "simplex internal batch: size mismatch");
+  for (int v = 0; v < n; ++v)
     for (int j = 0; j < 3; ++j) MSK_ASSERT(nb(v, j) >= 0 && nb(v, j) < n, "neighbour index out of range");
-    const Eigen::Vector3d pi[3] = {reference.positions.row(nb(v, 0)), reference.positions.row(nb(v, 1)),
-                                   reference.positions.row(nb(v, 2))};
-    const Eigen::Vector3d p = reference.positions.row(v);
-    double r = 0;
-    Eigen::Vector3d nrm;
-    if (!triangleFrame(pi[0], pi[1], pi[2], r, nrm)) {
-      eps.row(v).setConstant(1.0 / 3.0);
-      hOverR[v] = 0;
-      continue;
-    }
-    const double h = (p - pi[0]).dot(nrm);
-    const Eigen::Vector3d q = p - h * nrm;
-    const Eigen::Vector3d e0 = pi[1] - pi[0], e1 = pi[2] - pi[0], f = q - pi[0];
-    const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = f.dot(e0), d21 = f.dot(e1);
-    const double den = d00 * d11 - d01 * d01;
-    const double b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den;
-    eps.row(v) << 1.0 - b1 - b2, b1, b2;
-    hOverR[v] = h / r;
-  }
   // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours).
   const Colouring col = colourConstraints(n, 4, [&nb](int r, int* out) {
     out[0] = r;

@@ -156,6 +156,14 @@ struct Solver::Impl {
     seconds[s.name()] += std::chrono::duration<double>(Clock::now() - t0).count();
   }
 
+  /// The batch kernel of `s` where it has one and SolverOptions::batchKernels allows it (the same corrections as its
+  /// rows, several rows at a time), else nullptr.
+  SimplexInternalBatch* batchOf(ConstraintSet& s) const {
+    if (!opts.batchKernels) return nullptr;
+    auto* internal = dynamic_cast<SimplexInternalConstraints*>(&s);
+    return internal ? internal->batch() : nullptr;
+  }
+
   void applyRow(const ConstraintRow& r, const Eigen::Vector3d& dl, double scale, Points& q) const {
     for (int j = 0; j < r.count; ++j) q.row(r.index[j]) += ((scale * w[r.index[j]] * r.react[j]) * dl).transpose();
   }
@@ -164,6 +172,13 @@ struct Solver::Impl {
 
   /// One sweep of set `s` over p in coloured order: PBD (xpbdStep ≤ 0) or XPBD with substep h = xpbdStep.
   void colouredSweep(ConstraintSet& s, double xpbdStep) {
+    if (SimplexInternalBatch* b = xpbdStep <= 0 ? batchOf(s) : nullptr) {
+      for (int k = 0; k < b->colours(); ++k) {
+        const int begin = b->colourBegin(k);
+        pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(p, w, begin + lo, begin + hi); });
+      }
+      return;
+    }
     SetCache& c = cacheFor(s);
     s.beginRows(p, w);
     const double k = opts.stiffness;
@@ -198,7 +213,10 @@ struct Solver::Impl {
     counts.setZero(n);
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
-      if (s->rowCount() > 0) {
+      if (SimplexInternalBatch* b = batchOf(*s)) {
+        pool.run(b->size(), [&](int lo, int hi) { b->computeRange(p, w, lo, hi); });
+        b->addCounts(w, counts);
+      } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         s->beginRows(p, w);
         forRows(c, [&](int r) {
@@ -229,7 +247,10 @@ struct Solver::Impl {
     }
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
-      if (s->rowCount() > 0) {
+      if (SimplexInternalBatch* b = batchOf(*s)) {
+        pool.run(b->size(), [&](int lo, int hi) { b->scaleRange(counts, opts.omega, lo, hi); });
+        pool.run(b->size(), [&](int lo, int hi) { b->applyRange(p, lo, hi); });
+      } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         forRows(c, [&](int r) {
           const size_t i = static_cast<size_t>(r);

@@ -56,15 +56,18 @@ Problem makeProblem(int subdivisions, double perturbation, double massDecades, i
   return pr;
 }
 
-/// Positions after `iterations` sweeps of the Solver's scheme over the set's rows (one step from rest).
-Points solverSweeps(const Problem& pr, msk::Scheme scheme, int iterations, double gamma, double omega) {
+/// Positions after `iterations` sweeps of the Solver's scheme over the set's rows (one step from rest): row by row
+/// (the reference), or with the set's batch kernel as the Solver runs it by default, on `threads` threads.
+Points solverSweeps(const Problem& pr, msk::Scheme scheme, int iterations, double gamma, double omega,
+                    bool batch = false, int threads = 1) {
   msk::SimplexInternalConstraints set(pr.reference, gamma);
   set.setFirstParticle(pr.offset);
   msk::SolverOptions o;
   o.scheme = scheme;
   o.iterations = iterations;
   o.omega = omega;
-  o.threads = 1;
+  o.threads = threads;
+  o.batchKernels = batch;
   msk::Solver solver(o);
   solver.prepare(pr.p0, pr.w);
   solver.step({&set});
@@ -280,3 +283,26 @@ TEST(SimplexBatch, RefusesBadStiffnessAndSizes) {
 }
 
 }  // namespace
+
+// The Solver's coloured Gauss–Seidel and Jacobi schemes run the set's batch kernel by default: the same positions as
+// row by row up to rounding, and bitwise the same on one and two threads (a colour's rows, or the Jacobi rows and
+// particles, split between threads).
+TEST(SimplexBatch, SolverRunsTheBatchWithTheRowsResultOnAnyThreadCount) {
+  const Problem pr = makeProblem(4, 0.3, 2.0, 3, 17);
+  for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi}) {
+    const Points rows = solverSweeps(pr, scheme, 4, 0.8, 1.5, false, 1);
+    const Points one = solverSweeps(pr, scheme, 4, 0.8, 1.5, true, 1);
+    const Points two = solverSweeps(pr, scheme, 4, 0.8, 1.5, true, 2);
+    EXPECT_LT(relativeDifference(one, rows, pr.p0), 1e-12) << msk::schemeName(scheme);
+    EXPECT_TRUE(one == two) << msk::schemeName(scheme) << ": thread count changed the result";
+    EXPECT_GT((one - pr.p0).cwiseAbs().maxCoeff(), 0.0);
+  }
+  // Smoothing mode has no batch: the rows run.
+  msk::SimplexInternalConstraints smoothing(pr.reference, 0.5, msk::InternalMode::Smoothing);
+  EXPECT_EQ(smoothing.batch(), nullptr);
+  msk::SimplexInternalConstraints memory(pr.reference, 0.5);
+  memory.setFirstParticle(3);
+  ASSERT_NE(memory.batch(), nullptr);
+  EXPECT_EQ(memory.batch()->firstParticle(), 3);
+  EXPECT_EQ(memory.batch()->size(), pr.reference.vertexCount());
+}

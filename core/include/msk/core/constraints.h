@@ -11,6 +11,7 @@
 
 #include "msk/core/collision_response.h"
 #include "msk/core/collision_surface.h"
+#include "msk/core/simplex_batch.h"
 #include "msk/core/simplex_mesh.h"
 
 namespace msk {
@@ -145,6 +146,11 @@ enum class InternalMode {
   Smoothing     ///< ε̃ = 1/3, h̃ = mean of the neighbours' current scale-free heights
 };
 
+/// Reference metric parameters of every vertex of a 2-simplex mesh (DESIGN-NOTES §2, method 2): ε̃ (#V×3, barycentric
+/// coordinates of the vertex's projection on its neighbours' plane) and the scale-free height h̃ = h / r⊥ (#V); a
+/// vertex whose neighbours are degenerate gets ε̃ = ⅓ and h̃ = 0.
+void simplexReferenceParameters(const SimplexMesh& reference, Eigen::MatrixX3d& eps, Eigen::VectorXd& hOverR);
+
 /// Internal constraints of a 2-simplex mesh: one per vertex, targets from the reference (template) geometry.
 class SimplexInternalConstraints : public ConstraintSet {
  public:
@@ -158,6 +164,10 @@ class SimplexInternalConstraints : public ConstraintSet {
   int rowParticles(int r, int index[kMaxRowParticles]) const override;
   void beginRows(const Points& p, const Eigen::VectorXd& w) override;
   bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
+  /// The same rows as a batch kernel (simplex_batch.h: no virtual calls, several rows at a time), which the Solver's
+  /// coloured Gauss–Seidel and Jacobi schemes run instead of row(); built on first use, at the set's first particle.
+  /// Shape-memory mode only: nullptr in smoothing mode (its targets need a pass over the current heights).
+  SimplexInternalBatch* batch();
   /// User stiffness γ.
   double gamma() const { return gamma_; }
   /// Number of projections skipped as degenerate in the last pass.
@@ -166,6 +176,7 @@ class SimplexInternalConstraints : public ConstraintSet {
  private:
   /// Smoothing mode: the neighbourhood means of the current scale-free heights of the set's vertices `p` (#n×3).
   Eigen::VectorXd smoothingHeights(const Eigen::Ref<const Points>& p) const;
+  std::unique_ptr<SimplexInternalBatch> batch_;  ///< built by batch() on first use
   NeighborTable nb_;
   Eigen::MatrixX3d eps_;
   Eigen::VectorXd hOverR_;

@@ -30,6 +30,10 @@ class SimplexInternalBatch {
   /// Reference parameters ε̃, h̃ = h / r⊥ of `reference` computed as SimplexInternalConstraints does; γ ∈ [0, 1]
   /// (ParameterError otherwise). Throws Error if `reference` is not a 2-simplex mesh.
   SimplexInternalBatch(const SimplexMesh& reference, double gamma);
+  /// From a set's own data: the neighbour table (#V×3), ε̃ (#V×3) and h̃ (#V) as simplexReferenceParameters()
+  /// (constraints.h) gives them, γ ∈ [0, 1] (ParameterError otherwise).
+  SimplexInternalBatch(const NeighborTable& neighbors, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR,
+                       double gamma);
 
   /// Number of rows (one per vertex).
   int size() const { return static_cast<int>(order_.size()); }
@@ -74,6 +78,8 @@ class SimplexInternalBatch {
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
  private:
+  /// Fills every array from the neighbour table and reference parameters (both constructors).
+  void build(const NeighborTable& nb, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR);
   void checkSizes(const Points& p, const Eigen::VectorXd& w) const;
   /// applyRange() with every sum times `post`.
   void applyScaled(Points& p, int begin, int end, double post) const;

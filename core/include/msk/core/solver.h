@@ -86,6 +86,9 @@ struct SolverOptions {
   double cgTolerance = 1e-10;  ///< implicit: stop when the preconditioned residual falls below this share (> 0)
   int threads = 1;           ///< threads (≥ 1; 0 = all cores); results do not depend on it
   RowlessSets rowless = RowlessSets::Project;  ///< sets without rows under Jacobi and the force-based schemes
+  bool batchKernels = true;  ///< coloured Gauss–Seidel (PBD) and Jacobi run a set's batch kernel where it has one
+                             ///< (2-simplex internal, shape memory: SimplexInternalConstraints::batch()), which gives
+                             ///< its rows' corrections up to rounding several rows at a time; false: row by row
 
   /// The position-based Gauss–Seidel scheme with the settings of `pbd` (what PbdSolver runs).
   static SolverOptions fromPbd(const PbdOptions& pbd);
