@@ -29,7 +29,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
              "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space",
-             "collision-gap", "collision-proximity", "friction", "separation-sweeps", "scheme", "substeps",
+             "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
             {"help", "no-qc", "no-collisions"});
   if (args.has("help")) {
@@ -60,6 +60,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
            "  --collision-gap MM, --collision-proximity MM, --friction MU   contact gap, search reach beyond the\n"
            "                    gap and friction (defaults 0.2 mm, max(1 mm, half the largest spacing), 0)\n"
+           "  --collision-resolution sequential|global   contacts of pairs without \"resolution\" in the scene:\n"
+           "                    projected one by one (default) or solved together by conjugate gradient\n"
            "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
            "advanced (relative to the voxel size, so they hold at any resolution):\n"
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
@@ -109,6 +111,16 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
   opts.collisionFriction = args.num("friction", opts.collisionFriction);
+  if (args.has("collision-resolution")) {
+    const std::string r = args.str("collision-resolution");
+    if (r == "sequential") {
+      opts.collisionResolution = CollisionResolution::Sequential;
+    } else if (r == "global") {
+      opts.collisionResolution = CollisionResolution::Global;
+    } else {
+      throw ParameterError("--collision-resolution", r, "must be sequential or global");
+    }
+  }
   const double sweeps = args.num("separation-sweeps", opts.separationSweeps);
   if (!(sweeps >= 0 && sweeps <= 1000) || sweeps != std::floor(sweeps))
     throw ParameterError("--separation-sweeps", args.str("separation-sweeps"), "must be a whole number in 0..1000");

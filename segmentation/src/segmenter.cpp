@@ -723,6 +723,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       pairs.push_back({pair.a, pair.b, pairGap(pair)});
     SeparationOptions so;
     so.maxSweeps = opts.separationSweeps;
+    so.threads = opts.threads;
     so.reachMm = std::max(3.0, 2.0 * proximity);
     for (const CollisionPair& p : scene.collisions) so.reachMm = std::max(so.reachMm, pairGap(p) + pairProximity(p));
     const SeparationReport sep = separateSurfaces(surfaces, inverseMass, pairs, so);

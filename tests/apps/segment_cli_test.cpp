@@ -73,6 +73,9 @@ TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
         2, "--internal-stiffness");
   check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--quality", "ultra"}, 2,
         "ultra");
+  check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--collision-resolution",
+         "parallel"},
+        2, "--collision-resolution");
 }
 
 // A volumetric object (scene "model": {"volumetric": true}) also gets its tet mesh written as an LPS-tagged .vtu
