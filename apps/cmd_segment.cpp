@@ -28,7 +28,7 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "mesh-space",
+             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
              "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
             {"help", "no-qc", "no-collisions"});
@@ -67,7 +67,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
            "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
-           "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n";
+           "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n"
+           "  --muscle-target-step E        a muscle's image target is at most E local edge lengths from its vertex\n"
+           "                                in a step (default 1; 0: no limit; bones are not limited)\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -107,6 +109,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.edgePenalty = args.num("edge-penalty", opts.edgePenalty);
   opts.farTargetScaleMm = args.num("far-target", opts.farTargetScaleMm);
   if (!(opts.farTargetScaleMm >= 0)) throw ParameterError("--far-target", args.str("far-target"), "must be >= 0 mm");
+  opts.muscleTargetStepEdges = args.num("muscle-target-step", opts.muscleTargetStepEdges);
+  if (!(opts.muscleTargetStepEdges >= 0 && opts.muscleTargetStepEdges <= 1000))
+    throw ParameterError("--muscle-target-step", args.str("muscle-target-step"), "must be in [0, 1000]");
   opts.collisions = !args.has("no-collisions");
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);

@@ -132,6 +132,9 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   bad = {};
   bad.pbd.dt = -1;
   EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
+  bad = {};
+  bad.muscleTargetStepEdges = -1;
+  EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
   img.data[5] = NAN;
   EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
   EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);

@@ -2,8 +2,9 @@
 // adductors, with the phantom's touching pairs as collision pairs) on five more phantom seeds, oblique and anisotropic
 // grids included. The issue asks for a mean surface distance over objects ≤ 0.8 mm, every Dice ≥ 0.92, no voxel
 // inside two output surfaces and no vertex more than 0.1 mm inside a partner; each is printed per seed with whether it
-// is met. Asserted: Dice ≥ 0.92 (met on every seed), and, where not every seed meets the issue yet, the level reached
-// with a margin (mean ASSD ≤ 0.9 mm, ≤ 40 overlapping voxels, penetration ≤ 0.3 mm) so that a regression shows. The
+// is met. Asserted: Dice ≥ 0.92, mean ASSD ≤ 0.8 mm and penetration ≤ 0.1 mm (met on every seed since muscles' image
+// steps are limited), and, where not every seed meets the issue yet, the level reached: ≤ 5 overlapping voxels
+// (seed 3 has 2) so that a regression shows. The
 // boundary error where the fat septum between two muscles is missing (the image cannot separate them there) is
 // reported apart.
 #include <cstdio>
@@ -129,9 +130,9 @@ TEST(ThighSceneSeeds, FiveMoreSeedsIncludingObliqueAndAnisotropicGrids) {
     std::printf("%-34s issue 4: mean ASSD <= 0.8 %s, zero overlap %s, penetration <= 0.1 mm %s\n", "",
                 meanAssd <= 0.8 ? "met" : "NOT met", res.overlapVoxels == 0 ? "met" : "NOT met",
                 deepest <= 0.1 ? "met" : "NOT met");
-    EXPECT_LE(meanAssd, 0.9) << what;
-    EXPECT_LE(res.overlapVoxels, 40u) << what;
-    EXPECT_LE(deepest, 0.3) << what;
+    EXPECT_LE(meanAssd, 0.8) << what;
+    EXPECT_LE(res.overlapVoxels, 5u) << what;
+    EXPECT_LE(deepest, 0.1) << what;
     EXPECT_GT(missingCount, 0) << what << ": the phantom should have muscle boundaries without a septum";
   }
 }

@@ -48,6 +48,11 @@ struct SegmentOptions {
   double rangeCoarse = 3.0;   ///< search range at the coarsest level, same units, plus 2 mm
   double farTargetScaleMm = 0;  ///< > 0: a target d mm away pulls with weight 1/(1 + (d/scale)²) (robust to outliers)
   double edgePenalty = 0.1;   ///< score lost per mm of distance from the vertex (relative to the best edge)
+  /// > 0: a muscle's image target lies at most this many local edge lengths (mean distance to the vertex's three
+  /// neighbours) from its vertex in a step (0 = no limit). Targets at interfaces a muscle cannot reach (a partner, a
+  /// missing septum) otherwise pull at full length step after step and the surface buckles between them. Bones are
+  /// not limited: their edges are strong, and the limit cost the real CT femur 0.01 Dice.
+  double muscleTargetStepEdges = 1.0;
   InternalMode internalMode = InternalMode::ShapeMemory;       ///< shape memory or smoothing
   bool collisions = true;       ///< respond to the scene's collision pairs (false: objects ignore each other)
   double collisionGapMm = 0.2;  ///< default clearance g kept between partners (a pair in the scene may override)
