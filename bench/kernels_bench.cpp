@@ -65,6 +65,15 @@ msk::Points perturbed(const msk::Points& p, double amplitude, unsigned seed = 1)
   return q;
 }
 
+/// The timed loop of a constraint set's benchmark: one ConstraintSet::project() sweep of `c` over `p` per iteration.
+void projectEveryIteration(benchmark::State& state, msk::ConstraintSet& c, msk::Points& p, const Eigen::VectorXd& w) {
+  for (auto _ : state) {
+    c.project(p, w);
+    benchmark::DoNotOptimize(p.data());
+    benchmark::ClobberMemory();
+  }
+}
+
 /// Records items (projections), the complexity N (default: the vertex count n) and the usual counters.
 void finish(benchmark::State& state, int64_t perSweep, int64_t n, int64_t complexityN = -1) {
   state.SetItemsProcessed(state.iterations() * perSweep);
@@ -81,11 +90,7 @@ void BM_SimplexInternal(benchmark::State& state) {
   msk::SimplexInternalConstraints c(s, 0.5);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   state.counters["skipped"] = c.skipped();
   finish(state, s.vertexCount(), s.vertexCount());
 }
@@ -97,11 +102,7 @@ void BM_SimplexInternalSmoothing(benchmark::State& state) {
   msk::SimplexInternalConstraints c(s, 0.5, msk::InternalMode::Smoothing);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   finish(state, s.vertexCount(), s.vertexCount());
 }
 BENCHMARK(BM_SimplexInternalSmoothing)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
@@ -206,11 +207,7 @@ void BM_ImageTargets(benchmark::State& state) {
   c.setTargets(perturbed(s.positions * 1.02, 0.5, 2), Eigen::VectorXd::Ones(n));
   msk::Points p = s.positions;
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   finish(state, n, n);
 }
 BENCHMARK(BM_ImageTargets)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
@@ -222,11 +219,7 @@ void BM_ShapePrior(benchmark::State& state) {
   msk::ShapeMatchingConstraint c(s.positions, msk::PriorTransform::Similarity, 0.1);
   msk::Points p = perturbed(s.positions * 1.05, 1.0, 3);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   finish(state, n, n);
 }
 BENCHMARK(BM_ShapePrior)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
@@ -321,11 +314,7 @@ void BM_Radial(benchmark::State& state) {
   w.head(n).setOnes();
   w.tail(na) = msk::axisInverseMass(att, na, w.head(n));
   msk::RadialConstraints c(att, n, 0.5);
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   finish(state, n, n);
 }
 BENCHMARK(BM_Radial)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
@@ -338,11 +327,7 @@ void BM_VolumeSimplex(benchmark::State& state) {
   const int n = vm.vertexCount();
   msk::Points p = perturbed(vm.simplex.positions, 0.1, 5);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
-  for (auto _ : state) {
-    c.project(p, w);
-    benchmark::DoNotOptimize(p.data());
-    benchmark::ClobberMemory();
-  }
+  projectEveryIteration(state, c, p, w);
   state.counters["skipped"] = c.skipped();
   finish(state, n, n);
 }

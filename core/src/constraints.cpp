@@ -431,13 +431,7 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
   if (!(pcn + gap > 0)) return false;  // at least `gap` outside: nothing to do
   const Eigen::Vector3d tangential = pc - pcn * normal;
   const Eigen::Vector3d target = (1.0 - friction) * tangential - gap * normal;
-  const Eigen::Vector3d delta = target - pc;  // wanted change of Pc = Σ bi Pi − P
-  const double denom = w + bary[0] * bary[0] * wi[0] + bary[1] * bary[1] * wi[1] + bary[2] * bary[2] * wi[2];
-  if (!(denom > 0) || !delta.allFinite()) return false;
-  const double mbar = 1.0 / denom;
-  dp = (-w * mbar) * delta;
-  for (int i = 0; i < 3; ++i) dpi[i] = (wi[i] * bary[i] * mbar) * delta;
-  return true;
+  return shareContactChange(target - pc, bary, w, wi, dp, dpi);  // the wanted change of Pc = Σ bi Pi − P
 }
 
 namespace {

@@ -5,17 +5,12 @@
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "test_support.h"
 
 namespace {
 /// Two nested outward spheres in one mesh: points inside the inner one are covered twice.
 msk::TriangleMesh nestedSpheres() {
-  msk::TriangleMesh outer = msk::makeIcosphere(10, 3), inner = msk::makeIcosphere(5, 3, {1, 0, 0});
-  msk::TriangleMesh m = outer;
-  m.vertices.conservativeResize(outer.vertexCount() + inner.vertexCount(), 3);
-  m.vertices.bottomRows(inner.vertexCount()) = inner.vertices;
-  m.faces.conservativeResize(outer.faceCount() + inner.faceCount(), 3);
-  m.faces.bottomRows(inner.faceCount()) = inner.faces.array() + outer.vertexCount();
-  return m;
+  return msk::test::joinedMeshes(msk::makeIcosphere(10, 3), msk::makeIcosphere(5, 3, {1, 0, 0}));
 }
 }  // namespace
 

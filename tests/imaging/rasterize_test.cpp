@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "msk/core/error.h"
+#include "test_support.h"
 
 namespace {
 
@@ -181,12 +182,7 @@ TEST(Rasterize, OpenMeshThrows) {
 TEST(Rasterize, FollowsTheWindingNumberWhereTheSurfaceFolds) {
   auto join = [](const msk::TriangleMesh& a, msk::TriangleMesh b, bool flipB) {
     if (flipB) b.faces.col(1).swap(b.faces.col(2));
-    msk::TriangleMesh m = a;
-    m.vertices.conservativeResize(a.vertexCount() + b.vertexCount(), 3);
-    m.vertices.bottomRows(b.vertexCount()) = b.vertices;
-    m.faces.conservativeResize(a.faceCount() + b.faceCount(), 3);
-    m.faces.bottomRows(b.faceCount()) = b.faces.array() + a.vertexCount();
-    return m;
+    return msk::test::joinedMeshes(a, b);
   };
   const msk::TriangleMesh a = msk::makeIcosphere(6.0, 3, {0, 0, 0}), b = msk::makeIcosphere(6.0, 3, {6.3, 0.2, 0.1});
   msk::Grid g;

@@ -156,4 +156,13 @@ LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eig
   return cropAny(labels, lo, hi);
 }
 
+TriangleMesh joinedMeshes(const TriangleMesh& a, const TriangleMesh& b) {
+  TriangleMesh m = a;
+  m.vertices.conservativeResize(a.vertexCount() + b.vertexCount(), 3);
+  m.vertices.bottomRows(b.vertexCount()) = b.vertices;
+  m.faces.conservativeResize(a.faceCount() + b.faceCount(), 3);
+  m.faces.bottomRows(b.faceCount()) = b.faces.array() + a.vertexCount();
+  return m;
+}
+
 }  // namespace msk::test

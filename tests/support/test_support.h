@@ -60,6 +60,10 @@ Eigen::Vector3d labelCentroid(const LabelMap& labels, int label);
 /// (RAS mm).
 TriangleMesh mirroredTemplate(const LabelMap& labels, int fromLabel, double midX, const TemplateOptions& opts = {});
 
+/// One mesh holding both surfaces (b's vertices after a's, its faces renumbered): a surface covering some points
+/// twice, or with a turned-over sheet when b's faces are reversed.
+TriangleMesh joinedMeshes(const TriangleMesh& a, const TriangleMesh& b);
+
 /// The mesh scaled by `scale` about its vertex centroid, then moved by `offsetMm` (a template never exactly in place).
 TriangleMesh displacedScaled(const TriangleMesh& mesh, const Eigen::Vector3d& offsetMm, double scale);
 
