@@ -31,7 +31,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
              "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
              "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
-            {"help", "no-qc", "no-collisions"});
+            {"help", "no-qc", "no-collisions", "edge-focusing"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
@@ -67,6 +67,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
            "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
+           "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
+           "                                finest scale's edge next to it (a blurred thin bright shell, e.g.\n"
+           "                                CT cortex at 3 mm, shows its edge ~sigma too far out); default off\n"
            "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n"
            "  --muscle-target-step E        a muscle's image target is at most E local edge lengths from its vertex\n"
            "                                in a step (default 1; 0: no limit; bones are not limited)\n";
@@ -113,6 +116,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (!(opts.muscleTargetStepEdges >= 0 && opts.muscleTargetStepEdges <= 1000))
     throw ParameterError("--muscle-target-step", args.str("muscle-target-step"), "must be in [0, 1000]");
   opts.collisions = !args.has("no-collisions");
+  opts.edgeFocusing = args.has("edge-focusing");
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
   opts.collisionFriction = args.num("friction", opts.collisionFriction);

@@ -266,6 +266,24 @@ VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r,
   return t;
 }
 
+/// Edge focusing for one vertex: the strongest derivative of sign `sign` on the fine-scale line `fine` within
+/// ±`windowMm` of the coarse target `coarse` (penalised by distance from it as the search is from the vertex), located
+/// by its lobe's centre of mass. Returns `coarse` unchanged where the fine line has no such edge there.
+VertexTarget focusEdge(const LineSampler& fine, const VertexTarget& coarse, const ResolvedSearch& r, double sign,
+                       double penalty, double windowMm, double lobeHalfWidthMm, SearchScratch& buf) {
+  const int half = std::max(1, static_cast<int>(std::ceil(windowMm / r.stepMm))), n = 2 * half + 1;
+  buf.line.resize(static_cast<size_t>(n + 2));
+  for (int i = 0; i < n + 2; ++i) buf.line[i] = fine.at(coarse.offsetMm + (i - half - 1) * r.stepMm);
+  buf.value.assign(static_cast<size_t>(n), kNaN);
+  const double scale = sign / (2 * r.stepMm);
+  for (int i = 0; i < n; ++i) buf.value[i] = (buf.line[i + 2] - buf.line[i]) * scale;  // NaN if a sample is outside
+  const int arg = penalisedArgmax(buf.value, half, r.stepMm, penalty);
+  if (arg < 0) return coarse;
+  VertexTarget t = coarse;
+  t.offsetMm = coarse.offsetMm + (lobeCentroid(buf.value, arg, lobeHalfWidthMm / r.stepMm) - half) * r.stepMm;
+  return t;
+}
+
 /// Profile mode for one vertex: the offset whose window best correlates (NCC) with the learned `profile`.
 VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, const double* profile, int profileHalf,
                            double penalty, SearchScratch& buf) {
@@ -406,7 +424,7 @@ LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& posit
 
 TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
                                  const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
-                                 const Grid& grid, const LearnedProfiles* profiles) {
+                                 const Grid& grid, const LearnedProfiles* profiles, const ImageFeatures* focus) {
   requireSameRows(positions, normals);
   const Eigen::Index nv = positions.rows();
   if (polarity == Polarity::Auto)
@@ -434,6 +452,8 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
   out.offsets = Eigen::VectorXd::Zero(nv);
   out.scores = Eigen::VectorXd::Zero(nv);
   LineSampler sampler(features.smoothed);
+  const bool focusing = focus && !profileMode && focus->sigmaMm < features.sigmaMm;
+  LineSampler fineSampler(focusing ? focus->smoothed : features.smoothed);
   SearchScratch scratch;
   Eigen::Vector3d n;
   for (Eigen::Index v = 0; v < nv; ++v) {
@@ -452,6 +472,11 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
       const double footprintMm = features.smoothed.grid.spacing.dot(nVoxel.cwiseAbs());
       const double lobeMm = std::max(footprintMm + 2 * features.sigmaMm, 2 * r.stepMm);
       t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, scratch);
+      if (focusing && t.score > 0) {
+        fineSampler.setLine(positions.row(v).transpose(), n);
+        const double fineLobeMm = std::max(footprintMm + 2 * focus->sigmaMm, 2 * r.stepMm);
+        t = focusEdge(fineSampler, t, r, sign, opts.distancePenalty, features.sigmaMm + footprintMm, fineLobeMm, scratch);
+      }
     }
     if (t.score > 0 && std::isfinite(t.offsetMm)) {
       out.offsets[v] = t.offsetMm;

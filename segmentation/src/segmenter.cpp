@@ -215,6 +215,7 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["range_fine_voxels"] = o.rangeFine;
   j["range_coarse_voxels"] = o.rangeCoarse;
   j["edge_penalty_per_mm"] = o.edgePenalty;
+  j["edge_focusing"] = o.edgeFocusing;
   j["muscle_target_step_edges"] = o.muscleTargetStepEdges;
   j["collisions"] = o.collisions;
   j["collision_gap_mm"] = o.collisionGapMm;
@@ -557,6 +558,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (int l = coarsest; l >= 0; --l) {
     const int order = coarsest - l;  // 0 for the coarsest level
     const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
+    const ImageFeatures* focus = opts.edgeFocusing && order + 1 < rs.levels ? &features.at(rs.sigmaMm.back()) : nullptr;
     int n = 0;
     for (auto& st : objs) {
       st.volFirst = n;  // a volume model's tet particles come right before its surface's
@@ -653,7 +655,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         const Points normals = simplexVertexNormals(st.current);
         const TargetSearchResult found =
             searchTargets(feat, st.current.positions, normals, st.current.neighbors, st.search, st.polarity, image.grid,
-                          st.search.mode == TargetMode::Profile ? &st.profiles : nullptr);
+                          st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus);
         st.searchSeconds += since(ts);
         Eigen::VectorXd weights = scoreWeights(found.scores);
         if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less

@@ -367,6 +367,51 @@ TEST(ImageForcesGradient, CtBallAtThreeMillimetresIsotropic) {
   expectEdgeFound(image, Polarity::BrightInside, 3.0, 0.75);
 }
 
+// CT-like bone at 1 mm: a 2 mm cortical shell (1000) around marrow (100) in muscle (40), outer surface r = 20 mm. Seen
+// at a coarse σ = 3 mm the shell's outer edge lies about 1.5 mm too far out (a blurred thin shell is a bump, whose
+// falling side is at its centre + ~σ); edge focusing relocates each coarse target to the σ = 0.5 mm edge next to it.
+TEST(ImageForcesGradient, EdgeFocusingRemovesTheCoarseScaleShiftOfAThinShell) {
+  const ImageF image = makeImage({1.0, 1.0, 1.0}, {10, -5, 20}, 30, [](const Eigen::Vector3d& p) {
+    const double r = (p - kCenter).norm();
+    return r < kRadius - 2 ? 100.0 : r < kRadius ? 1000.0 : 40.0;
+  });
+  const ImageFeatures coarse = computeImageFeatures(image, 3.0), fine = computeImageFeatures(image, 0.5);
+  TargetSearchOptions opts;
+  opts.rangeMm = 6;
+  opts.regularisationRings = 0;
+  for (double r0 : {18.5, 20.0, 22.0}) {
+    SCOPED_TRACE("start radius " + std::to_string(r0));
+    const Sphere s = makeSphere(r0);
+    const TargetSearchResult blurred =
+        searchTargets(coarse, s.positions, s.normals, s.neighbors, opts, Polarity::BrightInside, image.grid);
+    const TargetSearchResult focused = searchTargets(coarse, s.positions, s.normals, s.neighbors, opts,
+                                                     Polarity::BrightInside, image.grid, nullptr, &fine);
+    ASSERT_TRUE(allFinite(focused));
+    const RadialError before = radialError(blurred.targets), after = radialError(focused.targets);
+    ::testing::Test::RecordProperty("coarse_mean_error_r" + std::to_string(static_cast<int>(r0 * 10)),
+                                    std::to_string(before.mean));
+    ::testing::Test::RecordProperty("focused_mean_error_r" + std::to_string(static_cast<int>(r0 * 10)),
+                                    std::to_string(after.mean));
+    // Where the fine scale alone puts the edge (within its ±6 mm, from a start this close).
+    const RadialError fineAlone = radialError(
+        searchTargets(fine, s.positions, s.normals, s.neighbors, opts, Polarity::BrightInside, image.grid).targets);
+    ::testing::Test::RecordProperty("fine_mean_error_r" + std::to_string(static_cast<int>(r0 * 10)),
+                                    std::to_string(fineAlone.mean));
+    EXPECT_GT(before.mean, 1.0);  // the shift this is about
+    EXPECT_NEAR(after.mean, fineAlone.mean, 0.05);
+    EXPECT_LT(std::abs(after.mean), 0.3);
+    EXPECT_LT(after.maxAbs, 0.6);
+    EXPECT_EQ((focused.scores - blurred.scores).cwiseAbs().maxCoeff(), 0.0);  // the coarse scale still decides
+  }
+  // Focusing needs a finer scale: with the same scale (or a coarser one) the search is unchanged.
+  const Sphere s = makeSphere(20.0);
+  const TargetSearchResult same = searchTargets(coarse, s.positions, s.normals, s.neighbors, opts,
+                                                Polarity::BrightInside, image.grid, nullptr, &coarse);
+  const TargetSearchResult plain =
+      searchTargets(coarse, s.positions, s.normals, s.neighbors, opts, Polarity::BrightInside, image.grid);
+  EXPECT_EQ((same.targets - plain.targets).cwiseAbs().maxCoeff(), 0.0);
+}
+
 TEST(ImageForcesGradient, DefaultsFollowTheVoxelSize) {
   // On a grid twice as coarse the default range doubles: an edge 6 mm away is found on 2.4 mm voxels.
   const ImageF image = makeImage({2.4, 2.4, 2.4}, {10, -5, 20}, 42, [](const Eigen::Vector3d& p) {

@@ -72,8 +72,14 @@ LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& posit
 
 /// Searches a target for every vertex along its normal. `neighbors` (#V×3, the simplex neighbour table) is used
 /// for the regularisation; `profiles` is required in Profile mode. `polarity` must not be Auto (estimate it once).
+/// Gradient mode with `focus` (features at a finer scale than `features`): edge focusing (Bergholm 1987) — the edge
+/// found at the coarse scale is relocated to the strongest edge of the same polarity at the fine scale within
+/// ±(coarse σ + the voxel's extent along the normal) of it (kept where the fine scale has none). Blurring moves an
+/// edge: a thin bright shell (CT cortex) seen at σ shows its outer edge about σ beyond where it is, so coarse targets
+/// alone pull a surface out by up to σ. The coarse scale still decides which edge; the fine one says where it is.
 TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
                                  const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
-                                 const Grid& grid, const LearnedProfiles* profiles = nullptr);
+                                 const Grid& grid, const LearnedProfiles* profiles = nullptr,
+                                 const ImageFeatures* focus = nullptr);
 
 }  // namespace msk
