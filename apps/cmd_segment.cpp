@@ -47,8 +47,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
            "  --quality   preset (default balanced): fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2\n"
            "              substeps x 2 iterations; balanced = 2 x 50, 0.02, Gauss-Seidel 1 x 1; accurate = 3 x 200,\n"
-           "              0.004, XPBD 2 x 2 (fast is ~10x quicker than accurate; see mskseg bench tradeoff)\n"
-           "              --levels/--steps/--tolerance/--scheme/--substeps/--iterations override it\n"
+           "              0.004, XPBD 2 x 2, finest image scale 0.25 voxel instead of 0.5 (fast is ~10x quicker than\n"
+           "              accurate; see mskseg bench tradeoff)\n"
+           "              --levels/--steps/--tolerance/--scheme/--substeps/--iterations/--sigma-fine override it\n"
            "  --scheme NAME   gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit\n"
            "                  (default: the preset's; another scheme comes with the substeps x iterations\n"
            "                  it needs: jacobi 1x2, xpbd 2x2 (k = 4, mass-relative), explicit 4x1, others 1x1)\n"
@@ -65,6 +66,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
            "advanced (relative to the voxel size, so they hold at any resolution):\n"
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
+           "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
            "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
            "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
@@ -105,7 +107,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.imageStiffness = args.num("image-stiffness", opts.imageStiffness);
   opts.priorStart = args.num("prior-start", opts.priorStart);
   opts.priorEnd = args.num("prior-end", opts.priorEnd);
-  opts.sigmaFine = args.num("sigma-fine", opts.sigmaFine);
+  if (args.has("sigma-fine")) opts.sigmaFine = args.num("sigma-fine", 0.5);
   opts.sigmaCoarse = args.num("sigma-coarse", opts.sigmaCoarse);
   opts.rangeFine = args.num("range-fine", opts.rangeFine);
   opts.rangeCoarse = args.num("range-coarse", opts.rangeCoarse);

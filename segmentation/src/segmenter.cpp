@@ -144,7 +144,7 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
     case Quality::Balanced:
       levels = 2; steps = 50; tolFactor = 0.02; scheme = Scheme::GaussSeidel; substeps = 1; iterations = 1;
       break;
-    case Quality::Accurate:  // run to a tight tolerance: about 10× the time of fast for the least surface distance
+    case Quality::Accurate:  // a tight tolerance and a lighter finest blur (sigmaFineVoxels): the least surface distance
       levels = 3; steps = 200; tolFactor = 0.004; scheme = Scheme::Xpbd; substeps = 2; iterations = 2;
       break;
   }
@@ -166,10 +166,11 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   s.solver.stiffness = o.xpbdStiffness;
   s.solver.xpbdStiffness = XpbdStiffness::MassRelative;
   s.solver.omega = o.jacobiOmega;
+  s.sigmaFineVoxels = o.sigmaFine ? *o.sigmaFine : o.quality == Quality::Accurate ? 0.25 : 0.5;
   // Coarse levels see a smoother image over a longer range; the finest level a light blur over a short range.
   for (int l = 0; l < s.levels; ++l) {
     const double f = s.levels == 1 ? 0.0 : 1.0 - static_cast<double>(l) / (s.levels - 1);  // 1 coarse → 0 fine
-    s.sigmaMm.push_back(minSp * (o.sigmaFine + (o.sigmaCoarse - o.sigmaFine) * f));
+    s.sigmaMm.push_back(minSp * (s.sigmaFineVoxels + (o.sigmaCoarse - s.sigmaFineVoxels) * f));
     s.rangeMm.push_back(maxSp * (o.rangeFine + (o.rangeCoarse - o.rangeFine) * f) + 2.0 * f);
   }
   return s;
@@ -210,7 +211,7 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["global_prior_weight_start"] = o.priorStart;
   j["global_prior_weight_end"] = o.priorEnd;
   j["far_target_scale_mm"] = o.farTargetScaleMm;
-  j["sigma_fine_voxels"] = o.sigmaFine;
+  j["sigma_fine_voxels"] = s.sigmaFineVoxels;
   j["sigma_coarse_voxels"] = o.sigmaCoarse;
   j["range_fine_voxels"] = o.rangeFine;
   j["range_coarse_voxels"] = o.rangeCoarse;
@@ -512,7 +513,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     throw ParameterError("tolerance", std::to_string(opts.toleranceMm), "must be ≥ 0 mm");
   if (opts.threads < 0 || opts.threads > 1024) throw ParameterError("threads", std::to_string(opts.threads), "must be 0..1024");
   validateSolverOptions(resolveSettings(opts, Grid{}).solver);  // throws on bad scheme settings
-  for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine, 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
+  for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine.value_or(0.5), 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
                              std::tuple{"range fine", opts.rangeFine, 20.0}, std::tuple{"range coarse", opts.rangeCoarse, 20.0},
                              std::tuple{"edge penalty", opts.edgePenalty, 10.0}})
     if (!(v >= 0 && v <= hi)) throw ParameterError(name, std::to_string(v), "must be in [0, " + std::to_string(hi) + "]");

@@ -151,10 +151,11 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
     double tolerance;
     msk::Scheme scheme;
     int substeps, iterations;
+    double sigmaFine;  // × the smallest spacing
   };
-  const Expected presets[] = {{msk::Quality::Fast, 1, 15, 0.04, msk::Scheme::Xpbd, 2, 2},
-                              {msk::Quality::Balanced, 2, 50, 0.02, msk::Scheme::GaussSeidel, 1, 1},
-                              {msk::Quality::Accurate, 3, 200, 0.004, msk::Scheme::Xpbd, 2, 2}};
+  const Expected presets[] = {{msk::Quality::Fast, 1, 15, 0.04, msk::Scheme::Xpbd, 2, 2, 0.5},
+                              {msk::Quality::Balanced, 2, 50, 0.02, msk::Scheme::GaussSeidel, 1, 1, 0.5},
+                              {msk::Quality::Accurate, 3, 200, 0.004, msk::Scheme::Xpbd, 2, 2, 0.25}};
   for (const Expected& e : presets) {
     msk::SegmentOptions o;
     o.quality = e.q;
@@ -166,7 +167,9 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
     EXPECT_EQ(s.solver.substeps, e.substeps) << msk::qualityName(e.q);
     EXPECT_EQ(s.solver.iterations, e.iterations) << msk::qualityName(e.q);
     EXPECT_EQ(s.sigmaMm.size(), static_cast<size_t>(e.levels));
+    EXPECT_DOUBLE_EQ(s.sigmaMm.back(), e.sigmaFine * 1.0) << msk::qualityName(e.q);
     const msk::Json j = msk::settingsJson(o, s);
+    EXPECT_DOUBLE_EQ(j.at("sigma_fine_voxels").asNumber(), e.sigmaFine);
     EXPECT_EQ(j.at("scheme").asString(), msk::schemeName(e.scheme));
     EXPECT_EQ(j.at("substeps").asInt(), e.substeps);
     EXPECT_EQ(j.at("iterations").asInt(), e.iterations);
@@ -183,7 +186,9 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
   o.iterations = 5;
   o.threads = 2;
   o.levels = 2;
+  o.sigmaFine = 0.7;
   const msk::ResolvedSettings s = msk::resolveSettings(o, g);
+  EXPECT_DOUBLE_EQ(s.sigmaMm.back(), 0.7);
   EXPECT_EQ(s.solver.scheme, msk::Scheme::Implicit);
   EXPECT_EQ(s.solver.substeps, 3);
   EXPECT_EQ(s.solver.iterations, 5);
