@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 
@@ -340,6 +342,105 @@ void AxisCentering::project(Points& p, const Eigen::VectorXd& w) {
   const Eigen::VectorXd wAxis = w.segment(firstAxis_, axisCount_);
   recenterAxis(surface, axis, att_, gamma_, &wAxis);
   p.middleRows(firstAxis_, axisCount_) = axis;
+}
+
+// ------------------------------------------------------------------------------------------------ axis-first stage
+
+namespace {
+
+/// Smallest rotation taking the direction of `from` onto the direction of `to` (identity if either is zero).
+Eigen::Matrix3d smallestRotation(const Vec3& from, const Vec3& to) {
+  if (!(from.squaredNorm() > 0) || !(to.squaredNorm() > 0)) return Eigen::Matrix3d::Identity();
+  return Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix();
+}
+
+}  // namespace
+
+Points axisShapeTargets(const Points& q, const Points& ref) {
+  const int n = static_cast<int>(q.rows());
+  if (ref.rows() != n) throw Error("axisShapeTargets: axis and reference differ in size");
+  if (n < 3) throw Error("axisShapeTargets: an open axis needs at least 3 vertices (got " + std::to_string(n) + ")");
+  Points t(n, 3);
+  auto row = [](const Points& m, int j) -> Vec3 { return m.row(j).transpose(); };
+  for (int j = 1; j + 1 < n; ++j) {
+    const Vec3 mid = 0.5 * (row(q, j - 1) + row(q, j + 1)), refMid = 0.5 * (row(ref, j - 1) + row(ref, j + 1));
+    const Eigen::Matrix3d r = smallestRotation(row(ref, j + 1) - row(ref, j - 1), row(q, j + 1) - row(q, j - 1));
+    t.row(j) = (mid + r * (row(ref, j) - refMid)).transpose();
+  }
+  // Ends: (end, next, next but one) = (0, 1, 2) and (n−1, n−2, n−3).
+  for (auto [e, a, b] : {std::tuple{0, 1, 2}, std::tuple{n - 1, n - 2, n - 3}}) {
+    const Eigen::Matrix3d r = smallestRotation(row(ref, b) - row(ref, a), row(q, b) - row(q, a));
+    t.row(e) = (2.0 * row(q, a) - row(q, b) + r * (row(ref, e) - 2.0 * row(ref, a) + row(ref, b))).transpose();
+  }
+  return t;
+}
+
+GeneralisedCylinder::GeneralisedCylinder(const Points& refSurface, const Points& refAxis, const RadialAttachment& att)
+    : refSurface_(refSurface), refAxis_(refAxis), att_(att) {
+  checkAttachment(att_, "GeneralisedCylinder");
+  const int na = static_cast<int>(refAxis_.rows()), nv = att_.vertexCount();
+  if (na < 3) throw Error("GeneralisedCylinder: the axis needs at least 3 vertices (got " + std::to_string(na) + ")");
+  if (refSurface_.rows() != nv)
+    throw Error("GeneralisedCylinder: " + std::to_string(refSurface_.rows()) +
+                " surface vertices for an attachment of " + std::to_string(nv));
+  if (nv > 0 && att_.axisIndex.maxCoeff() >= na) throw Error("GeneralisedCylinder: attachment beyond the axis");
+  refOffset_.resize(nv, 3);
+  carried_ = Eigen::VectorXd::Zero(na);
+  for (int v = 0; v < nv; ++v) {
+    const int a = att_.axisIndex(v, 0), b = att_.axisIndex(v, 1);
+    refOffset_.row(v) =
+        refSurface_.row(v) - (att_.weights(v, 0) * refAxis_.row(a) + att_.weights(v, 1) * refAxis_.row(b));
+    carried_[a] += att_.weights(v, 0);
+    carried_[b] += att_.weights(v, 1);
+  }
+}
+
+Points GeneralisedCylinder::tangents(const Points& q) {
+  const int n = static_cast<int>(q.rows());
+  Points t(n, 3);
+  for (int j = 0; j < n; ++j) {
+    const Eigen::RowVector3d d = q.row(std::min(j + 1, n - 1)) - q.row(std::max(j - 1, 0));
+    const double len = d.norm();
+    t.row(j) = len > 0 ? Eigen::RowVector3d(d / len) : Eigen::RowVector3d::Zero();
+  }
+  return t;
+}
+
+Points GeneralisedCylinder::surface(const Points& q) const {
+  if (q.rows() != refAxis_.rows()) throw Error("GeneralisedCylinder::surface: axis size differs from the reference");
+  const Points tRef = tangents(refAxis_), t = tangents(q);
+  const int nv = att_.vertexCount();
+  Points p(nv, 3);
+  for (int v = 0; v < nv; ++v) {
+    const int a = att_.axisIndex(v, 0), b = att_.axisIndex(v, 1);
+    const double c0 = att_.weights(v, 0), c1 = att_.weights(v, 1);
+    const Vec3 from = (c0 * tRef.row(a) + c1 * tRef.row(b)).transpose();
+    const Vec3 to = (c0 * t.row(a) + c1 * t.row(b)).transpose();
+    const Vec3 foot = (c0 * q.row(a) + c1 * q.row(b)).transpose();
+    p.row(v) = (foot + smallestRotation(from, to) * refOffset_.row(v).transpose()).transpose();
+  }
+  return p;
+}
+
+Points GeneralisedCylinder::axisDrive(const Points& d) const {
+  const int nv = att_.vertexCount(), na = axisVertexCount();
+  if (d.rows() != nv) throw Error("GeneralisedCylinder::axisDrive: displacements differ in size from the surface");
+  Points sum = Points::Zero(na, 3);
+  for (int v = 0; v < nv; ++v)
+    for (int k = 0; k < 2; ++k) sum.row(att_.axisIndex(v, k)) += att_.weights(v, k) * d.row(v);
+  for (int j = 0; j < na; ++j) sum.row(j) = carried_[j] > 0 ? Eigen::RowVector3d(sum.row(j) / carried_[j])
+                                                             : Eigen::RowVector3d::Zero();
+  return sum;
+}
+
+double GeneralisedCylinder::step(Points& q, const Points& d, const AxisFirstOptions& opts) const {
+  checkUnitInterval("axis-first image gain", opts.imageGain);
+  checkUnitInterval("axis-first shape memory", opts.shapeMemory);
+  if (q.rows() != refAxis_.rows()) throw Error("GeneralisedCylinder::step: axis size differs from the reference");
+  const Points before = q;
+  q += opts.imageGain * axisDrive(d);
+  q += opts.shapeMemory * (axisShapeTargets(q, refAxis_) - q);
+  return (q - before).rowwise().norm().maxCoeff();
 }
 
 }  // namespace msk

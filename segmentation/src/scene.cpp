@@ -23,7 +23,8 @@ const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "templat
                                               "force", "model", "profiles_from"};
 const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
                                              "image_force",     "medial_axis",        "radial_stiffness",
-                                             "axis_spacing_mm", "volumetric",         "volume_stiffness"};
+                                             "axis_spacing_mm", "axis_first",         "volumetric",
+                                             "volume_stiffness"};
 const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction",
                                                      "mode",   "target",       "resolution"};
 const std::vector<std::string> kForces = {"gradient", "profile"};
@@ -171,6 +172,12 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   if ((radial || spacing) && !m.medialAxis)
     check.fail(at, std::string("\"") + (radial ? "radial_stiffness" : "axis_spacing_mm") +
                        "\" is given but the object has no medial axis (set \"medial_axis\": true)");
+  bool axisFirst = false;
+  if (check.boolean(*model, "axis_first", at, &axisFirst)) {
+    if (!m.medialAxis)
+      check.fail(at, "\"axis_first\" is given but the object has no medial axis (set \"medial_axis\": true)");
+    m.axisFirst = axisFirst;
+  }
 
   check.boolean(*model, "volumetric", at, &m.volumetric);
   if (check.number(*model, "volume_stiffness", Checker::Range::UnitInterval, at, &m.volumeStiffness) && !m.volumetric)

@@ -245,6 +245,24 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["radial_stiffness"] = o.radialStiffness;
   j["axis_spacing_mm"] = o.axisSpacingMm;
   j["axis_centering"] = o.axisCentering;
+  j["axis_first"] = o.axisFirst;
+  j["axis_first_max_steps"] = o.axisFirstSteps;
+  j["axis_first_image_gain"] = o.axisFirstStage.imageGain;
+  j["axis_first_shape_memory"] = o.axisFirstStage.shapeMemory;
+  if (!s.axisFirst.empty()) {
+    Json stage = Json::array();
+    for (const AxisFirstReport& a : s.axisFirst) {
+      Json r;
+      r["object"] = a.object;
+      r["steps"] = a.steps;
+      r["converged"] = a.converged;
+      r["last_max_move_mm"] = a.lastMaxMoveMm;
+      r["mean_axis_move_mm"] = a.meanAxisMoveMm;
+      r["seconds"] = a.seconds;
+      stage.push(r);
+    }
+    j["axis_first_stage"] = stage;
+  }
   j["volume_stiffness"] = o.volumeStiffness;
   j["bone_mass_ratio"] = o.boneMassRatio;
   j["pbd_dt"] = o.pbd.dt;
@@ -298,6 +316,16 @@ struct ObjectState {
   }
   /// Whether the object's model has a medial axis.
   bool hasAxis() const { return obj && obj->model.medialAxis; }
+  // Axis-first stage (objects that run it): the coarsest template's axis and where the stage left it.
+  Points stageAxisRef, stageAxis;  ///< empty without the stage
+  /// Template points (any level's surface or axis) swept by the axis-first stage (GeneralisedCylinder about the
+  /// coarsest template axis); unchanged without the stage.
+  Points bentByStage(const Points& templ) const {
+    if (stageAxis.rows() == 0) return templ;
+    return GeneralisedCylinder(templ, stageAxisRef, attachToAxis(templ, stageAxisRef)).surface(stageAxis);
+  }
+  /// Whether the object runs the axis-first coarse stage (its model's "axis_first", else the run's default).
+  bool runsAxisFirst(const SegmentOptions& o) const { return hasAxis() && obj->model.axisFirst.value_or(o.axisFirst); }
   /// Number of axis particles at the current level (0 without an axis).
   int axisCount() const { return hasAxis() ? axis.curve.vertexCount() : 0; }
 };
@@ -369,15 +397,24 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   }
   // Only what the object's model asks for is built.
   const ObjectModel& model = st.obj->model;
+  // After the axis-first stage, the template swept by the stage's axis is the object's reference shape (shape memory,
+  // global prior, axis and radii): the straight template's similarity prior would otherwise pull the bend back out.
+  const SimplexMesh* shape = &ref.simplex;
+  SimplexMesh bentShape;
+  if (st.stageAxis.rows() > 0) {
+    bentShape = ref.simplex;
+    bentShape.positions = st.bentByStage(ref.simplex.positions);
+    shape = &bentShape;
+  }
   st.internal.reset();
   if (model.shapeMemory)
     st.internal = std::make_unique<SimplexInternalConstraints>(
-        ref.simplex, model.internalStiffness >= 0 ? model.internalStiffness : opts.internalStiffness,
+        *shape, model.internalStiffness >= 0 ? model.internalStiffness : opts.internalStiffness,
         opts.internalMode == InternalMode::Smoothing ? InternalMode::Smoothing : *model.shapeMemory);
   st.targets = std::make_unique<TargetConstraints>(opts.imageStiffness);
   st.prior.reset();
   if (model.globalPrior)
-    st.prior = std::make_unique<ShapeMatchingConstraint>(ref.simplex.positions,
+    st.prior = std::make_unique<ShapeMatchingConstraint>(shape->positions,
                                                          model.priorTransform.value_or(opts.priorTransform), opts.priorStart);
   st.radial.reset();
   st.centering.reset();
@@ -387,8 +424,9 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     MedialAxisOptions mo;
     mo.spacingMm = model.axisSpacingMm > 0 ? model.axisSpacingMm : opts.axisSpacingMm;
     st.axis = buildMedialAxis(ref.triangles, mo);
-    st.attachment = attachToAxis(ref.simplex.positions, st.axis.curve.positions);
-    const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
+    if (shape != &ref.simplex) st.axis.curve.positions = st.bentByStage(st.axis.curve.positions);
+    st.attachment = attachToAxis(shape->positions, st.axis.curve.positions);
+    const Eigen::Matrix4d fit = fitTransform(shape->positions, st.current.positions,
                                              Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Similarity);
     st.axisStart = ((st.axis.curve.positions * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
                     fit.topRightCorner<3, 1>().transpose());
@@ -449,6 +487,52 @@ void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
   st.centering->setFirstParticle(st.first);
 }
 
+/// The axis-first coarse stage (DESIGN-NOTES §4, "evolve the axis first") of an object with a medial axis at level
+/// `l`, after enterLevel() and before the full-surface evolution: the object moves as a generalised cylinder of its
+/// axis (GeneralisedCylinder: the surface keeps its template radii about the axis, the axis is driven by the
+/// attachment-weighted mean of its surface vertices' image-target displacements — searched, score-weighted and
+/// step-limited as in the full evolution — and keeps its shape), until no axis vertex moves more than the tolerance or
+/// the step cap. The surface and axis particles then start from there, and the stage's axis is kept (stageAxis) so
+/// that enterLevel() bends every level's reference shape with it; the caller rebuilds the level's sets. Objects do not
+/// see each other in this stage: collisions act from the full evolution on.
+AxisFirstReport runAxisFirst(ObjectState& st, int l, const SegmentOptions& opts, const ResolvedSettings& rs,
+                             const ImageFeatures& feat, const Grid& grid) {
+  AxisFirstReport rep;
+  rep.object = st.obj->name;
+  const GeneralisedCylinder cylinder(st.lv[static_cast<size_t>(l)].simplex.positions, st.axis.curve.positions,
+                                     st.attachment);
+  Points axis = st.axisStart;
+  SimplexMesh mesh = st.current;
+  for (int s = 0; s < opts.axisFirstSteps; ++s) {
+    mesh.positions = cylinder.surface(axis);
+    const auto ts = Clock::now();
+    const TargetSearchResult found =
+        searchTargets(feat, mesh.positions, simplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
+                      st.search.mode == TargetMode::Profile ? &st.profiles : nullptr);
+    st.searchSeconds += since(ts);
+    Eigen::VectorXd weights = scoreWeights(found.scores);
+    if (opts.farTargetScaleMm > 0)
+      for (int i = 0; i < weights.size(); ++i)
+        weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
+    Points targets = found.targets;
+    if (opts.muscleTargetStepEdges > 0 && st.obj->kind == ObjectKind::Muscle)
+      limitTargetStep(mesh, opts.muscleTargetStepEdges, targets);
+    const Points displacement = weights.cwiseMin(1.0).cwiseMax(0.0).asDiagonal() * (targets - mesh.positions);
+    rep.lastMaxMoveMm = cylinder.step(axis, displacement, opts.axisFirstStage);
+    ++rep.steps;
+    if (rep.lastMaxMoveMm < rs.toleranceMm) {
+      rep.converged = true;
+      break;
+    }
+  }
+  st.current.positions = cylinder.surface(axis);
+  rep.meanAxisMoveMm = (axis - st.axisStart).rowwise().norm().mean();
+  st.axisStart = axis;
+  st.stageAxisRef = st.axis.curve.positions;
+  st.stageAxis = axis;
+  return rep;
+}
+
 /// Final surface on the template's own triangulation, with per-vertex displacement and image residual.
 void finishObject(ObjectState& st) {
   st.current.pointData.clear();
@@ -488,6 +572,10 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   checkUnitInterval("radial stiffness", opts.radialStiffness);
   checkUnitInterval("volume stiffness", opts.volumeStiffness);
   checkUnitInterval("axis centring", opts.axisCentering);
+  checkUnitInterval("axis-first image gain", opts.axisFirstStage.imageGain);
+  checkUnitInterval("axis-first shape memory", opts.axisFirstStage.shapeMemory);
+  if (opts.axisFirstSteps < 0 || opts.axisFirstSteps > 100000)
+    throw ParameterError("axis-first steps", std::to_string(opts.axisFirstSteps), "must be 0..100000");
   if (!(opts.axisSpacingMm >= 0.5 && opts.axisSpacingMm <= 100))
     throw ParameterError("axis spacing", std::to_string(opts.axisSpacingMm), "must be in [0.5, 100] mm");
   if (!(opts.muscleTargetStepEdges >= 0))
@@ -577,6 +665,18 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
         buildAxisSets(st, opts);
         if (l == coarsest) ++res.medialAxesBuilt;
       }
+    // The axis-first coarse stage, for the objects that ask for it, before the coarsest level's full evolution.
+    if (l == coarsest)
+      for (auto& st : objs)
+        if (st.runsAxisFirst(opts)) {
+          const auto ta = Clock::now();
+          res.settings.axisFirst.push_back(runAxisFirst(st, l, opts, rs, feat, image.grid));
+          // The level's sets again, now about the template the stage bent (same particle counts and places).
+          enterLevel(st, l, coarsest, opts, feat, image.grid);
+          buildAxisSets(st, opts);
+          res.settings.axisFirst.back().seconds = since(ta);
+          res.secondsPerStage["axis-first"] += res.settings.axisFirst.back().seconds;
+        }
     if (l == coarsest)
       for (const auto& st : objs) res.volumeModelsBuilt += st.volume ? 1 : 0;
     Points x(n, 3);

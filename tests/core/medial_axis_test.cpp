@@ -333,3 +333,124 @@ TEST(RadialConstraints, BadParametersThrow) {
   open.faces.conservativeResize(open.faceCount() - 1, 3);
   EXPECT_THROW(msk::buildMedialAxis(open), msk::Error);
 }
+
+// ------------------------------------------------------------------------------------------------ axis-first stage
+
+namespace {
+
+/// A straight axis of `n` vertices along the tube's true axis, over ±0.9 of its half length.
+msk::Points straightAxis(const Tube& t, int n) {
+  msk::Points q(n, 3);
+  for (int j = 0; j < n; ++j)
+    q.row(j) = (t.center + (-0.9 + 1.8 * j / (n - 1)) * t.half * t.axis).transpose();
+  return q;
+}
+
+}  // namespace
+
+// The reference axis sweeps the reference surface; a translated axis the translated surface; an axis turned about a
+// line across it (no twist) the turned surface.
+TEST(GeneralisedCylinder, ReferenceAndRigidAxesSweepTheMovedSurface) {
+  const Tube t = makeTube();
+  const msk::Points ref = straightAxis(t, 9);
+  const msk::RadialAttachment att = msk::attachToAxis(t.mesh.vertices, ref);
+  const msk::GeneralisedCylinder gc(t.mesh.vertices, ref, att);
+  EXPECT_EQ(gc.axisVertexCount(), 9);
+  EXPECT_LT((gc.surface(ref) - t.mesh.vertices).cwiseAbs().maxCoeff(), 1e-9);
+
+  const Vec3 shift(2.0, -3.0, 1.5);
+  EXPECT_LT((gc.surface(ref.rowwise() + shift.transpose()) - (t.mesh.vertices.rowwise() + shift.transpose()))
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-9);
+
+  const Eigen::Matrix3d rot = Eigen::AngleAxisd(0.3, t.axis.unitOrthogonal()).toRotationMatrix();
+  auto turned = [&](const msk::Points& p) {
+    return msk::Points(((p.rowwise() - t.center.transpose()) * rot.transpose()).rowwise() + t.center.transpose());
+  };
+  EXPECT_LT((gc.surface(turned(ref)) - turned(t.mesh.vertices)).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_THROW(gc.surface(ref.topRows(5)), msk::Error);
+  EXPECT_THROW(msk::GeneralisedCylinder(t.mesh.vertices.topRows(10), ref, att), msk::Error);
+  EXPECT_THROW(msk::GeneralisedCylinder(t.mesh.vertices, ref.topRows(2), msk::attachToAxis(t.mesh.vertices,
+                                                                                          ref.topRows(2))),
+               msk::Error);
+}
+
+// Bending the axis keeps every surface vertex at its reference radius from its attachment point (the radial
+// constraints taken as stiff), and moves the middle of the surface with the middle of the axis.
+TEST(GeneralisedCylinder, BentAxisKeepsTheReferenceRadii) {
+  const Tube t = makeTube();
+  const msk::Points ref = straightAxis(t, 11);
+  const msk::RadialAttachment att = msk::attachToAxis(t.mesh.vertices, ref);
+  const msk::GeneralisedCylinder gc(t.mesh.vertices, ref, att);
+  const Vec3 across = t.axis.unitOrthogonal();
+  msk::Points bent = ref;
+  for (int j = 0; j < bent.rows(); ++j) {
+    const double u = (j - 5) / 5.0;  // −1 … 1
+    bent.row(j) += (6.0 * u * u) * across.transpose();
+  }
+  const msk::Points p = gc.surface(bent);
+  double worst = 0;
+  for (int v = 0; v < p.rows(); ++v) {
+    const Vec3 foot = att.weights(v, 0) * bent.row(att.axisIndex(v, 0)).transpose() +
+                      att.weights(v, 1) * bent.row(att.axisIndex(v, 1)).transpose();
+    worst = std::max(worst, std::fabs((p.row(v).transpose() - foot).norm() - att.radius[v]));
+  }
+  EXPECT_LT(worst, 1e-9);
+  // The surface's centroid across the tube follows the axis's: the bend is 6u² mm, its mean over the vertices > 1 mm.
+  const double moved = Eigen::RowVector3d((p - t.mesh.vertices).colwise().mean()).dot(across.transpose());
+  EXPECT_GT(moved, 1.0);
+  EXPECT_LT(moved, 6.0);
+}
+
+// The drive of a uniform surface displacement is that displacement at every axis vertex; a step with full image gain
+// moves the axis by it (a translation is a fixed point of the axis shape memory), and a gain of ½ by half of it.
+TEST(GeneralisedCylinder, UniformDisplacementTranslatesTheAxis) {
+  const Tube t = makeTube();
+  const msk::MedialAxis ax = msk::buildMedialAxis(t.mesh);
+  const msk::RadialAttachment att = msk::attachToAxis(t.mesh.vertices, ax.curve.positions);
+  const msk::GeneralisedCylinder gc(t.mesh.vertices, ax.curve.positions, att);
+  const Vec3 d(1.0, 2.0, -0.5);
+  const msk::Points disp = Eigen::VectorXd::Ones(t.mesh.vertexCount()) * d.transpose();
+  const msk::Points drive = gc.axisDrive(disp);
+  for (int j = 0; j < drive.rows(); ++j) EXPECT_LT((drive.row(j).transpose() - d).norm(), 1e-12) << j;
+  for (double gain : {1.0, 0.5}) {
+    msk::Points q = ax.curve.positions;
+    msk::AxisFirstOptions o;
+    o.imageGain = gain;
+    const double move = gc.step(q, disp, o);
+    EXPECT_NEAR(move, gain * d.norm(), 1e-9);
+    EXPECT_LT(((q - ax.curve.positions).rowwise() - gain * d.transpose()).cwiseAbs().maxCoeff(), 1e-9);
+  }
+  msk::Points q = ax.curve.positions;
+  msk::AxisFirstOptions bad;
+  bad.shapeMemory = 1.5;
+  EXPECT_THROW(gc.step(q, disp, bad), msk::ParameterError);
+  bad = msk::AxisFirstOptions();
+  bad.imageGain = -0.1;
+  EXPECT_THROW(gc.step(q, disp, bad), msk::ParameterError);
+  EXPECT_THROW(gc.axisDrive(disp.topRows(3)), msk::Error);
+}
+
+// Axis shape memory: a planar curved reference, translated and turned in its plane, is a fixed point; a kink put into
+// it is pulled back (the targets of the kinked vertex lie closer to the reference shape).
+TEST(GeneralisedCylinder, AxisShapeMemoryRestoresAKink) {
+  const int n = 9;
+  msk::Points ref(n, 3);
+  for (int j = 0; j < n; ++j) {
+    const double a = 0.1 * (j - 4);
+    ref.row(j) = Eigen::RowVector3d(60.0 * std::sin(a), 60.0 * (1.0 - std::cos(a)), 5.0);  // arc of radius 60 mm
+  }
+  const Eigen::Matrix3d rot = Eigen::AngleAxisd(0.4, Vec3::UnitZ()).toRotationMatrix();
+  const msk::Points moved = (ref * rot.transpose()).rowwise() + Eigen::RowVector3d(3, -2, 7);
+  EXPECT_LT((msk::axisShapeTargets(moved, moved) - moved).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((msk::axisShapeTargets(moved, ref) - moved).cwiseAbs().maxCoeff(), 1e-9);
+  msk::Points kinked = ref;
+  kinked.row(4) += Eigen::RowVector3d(0, 3.0, 0);
+  kinked.row(0) += Eigen::RowVector3d(0, -2.0, 1.0);
+  const msk::Points target = msk::axisShapeTargets(kinked, ref);
+  EXPECT_LT((target.row(4) - ref.row(4)).norm(), 0.5 * (kinked.row(4) - ref.row(4)).norm());
+  EXPECT_LT((target.row(0) - ref.row(0)).norm(), 0.5 * (kinked.row(0) - ref.row(0)).norm());
+  EXPECT_THROW(msk::axisShapeTargets(ref.topRows(2), ref.topRows(2)), msk::Error);
+  EXPECT_THROW(msk::axisShapeTargets(ref, ref.topRows(5)), msk::Error);
+}

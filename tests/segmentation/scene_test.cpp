@@ -305,6 +305,7 @@ TEST(Scene, DefaultModelsKeepTodaysBehaviourForEveryKind) {
     EXPECT_FALSE(m.medialAxis);
     EXPECT_LT(m.radialStiffness, 0);
     EXPECT_LT(m.axisSpacingMm, 0);
+    EXPECT_FALSE(m.axisFirst.has_value());  // the run's default (SegmentOptions::axisFirst, off)
     EXPECT_FALSE(m.volumetric);
     EXPECT_LT(m.volumeStiffness, 0);
   }
@@ -631,4 +632,34 @@ TEST(Scene, ToProfileSourceMirrorsPointsAndKeepsNormalsOutward) {
     EXPECT_NEAR(n.row(v).dot(a * tangent), 0.0, 1e-12);
     EXPECT_GT(n.row(v).dot(a * Eigen::Vector3d(normals.row(v))), 0.0);
   }
+}
+
+// "axis_first" (the axis-first coarse stage): read as given with a medial axis, unset otherwise (the run's default);
+// given without a medial axis, or not a boolean, it is an error naming the key and the object.
+TEST(Scene, AxisFirstNeedsAMedialAxisAndNamesTheKeyAndTheObject) {
+  SceneFiles f;
+  const std::string text = R"({"objects": [
+      {"name": "quad", "label": 1, "kind": "muscle", "template": "a.vtk",
+       "model": {"medial_axis": true, "axis_first": true}},
+      {"name": "ham", "label": 2, "kind": "muscle", "template": "b.vtk",
+       "model": {"medial_axis": true, "axis_first": false}},
+      {"name": "add", "label": 3, "kind": "muscle", "template": "b.vtk", "model": {"medial_axis": true}}]})";
+  const msk::Scene s = msk::loadScene(f.scene(text));
+  ASSERT_EQ(s.objects.size(), 3u);
+  ASSERT_TRUE(s.objects[0].model.axisFirst.has_value());
+  EXPECT_TRUE(*s.objects[0].model.axisFirst);
+  ASSERT_TRUE(s.objects[1].model.axisFirst.has_value());
+  EXPECT_FALSE(*s.objects[1].model.axisFirst);
+  EXPECT_FALSE(s.objects[2].model.axisFirst.has_value());
+
+  const std::string m = R"(, "model": )";
+  expectSceneError(f.scene(twoObjects(m + R"({"axis_first": true})"), "no_axis.json"),
+                   {"objects[0] (femur) model: \"axis_first\" is given but the object has no medial axis",
+                    "\"medial_axis\": true"});
+  expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": false, "axis_first": false})"), "axis_off.json"),
+                   {"objects[0] (femur) model: \"axis_first\" is given but the object has no medial axis"});
+  expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": true, "axis_first": "yes"})"), "not_bool.json"),
+                   {"objects[0] (femur) model: \"axis_first\" must be true or false, found string \"yes\""});
+  expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": true, "axis_frist": true})"), "typo.json"),
+                   {"objects[0] (femur) model: unknown key \"axis_frist\"", "axis_first"});
 }

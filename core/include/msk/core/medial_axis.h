@@ -144,4 +144,54 @@ class AxisCentering : public ConstraintSet {
   double gamma_;
 };
 
+// ------------------------------------------------------------------------------------------------ axis-first stage
+
+/// Settings of one axis-first step (GeneralisedCylinder::step(); user input).
+struct AxisFirstOptions {
+  double imageGain = 1.0;    ///< share of the axis image drive D_j applied per step, [0, 1]
+  double shapeMemory = 0.5;  ///< γ of the axis shape memory (axisShapeTargets()) per step, [0, 1]
+};
+
+/// Shape-memory targets of an open axis polyline (#A ≥ 3, mm) against its reference (same size, mm): the 1-simplex
+/// analogue of the simplex meshes' shape memory (DESIGN-NOTES §4 "axis smoothness"). Interior vertex j goes to
+/// ½(Q_{j−1} + Q_{j+1}) + R_j (Q̃_j − ½(Q̃_{j−1} + Q̃_{j+1})), R_j the smallest rotation taking the reference chord
+/// Q̃_{j+1} − Q̃_{j−1} onto the current one; an end vertex goes to the extrapolation 2Q_1 − Q_2 + R (Q̃_0 − 2Q̃_1 + Q̃_2)
+/// (likewise at the other end), R taking Q̃_2 − Q̃_1 onto Q_2 − Q_1. Translations of the reference, and rotations
+/// about an axis across all its chords (a planar reference turned in its plane), are fixed points; a twist about the
+/// chords is not restored. A straight reference makes it Laplacian smoothing. Throws Error if the sizes differ or
+/// #A < 3.
+Points axisShapeTargets(const Points& axis, const Points& reference);
+
+/// A tubular surface moved as a generalised cylinder by its medial axis: the axis-first coarse stage (DESIGN-NOTES §4,
+/// "evolve the axis first"). Every surface vertex keeps its reference offset from its attachment point Q̄ (so its
+/// reference radius r̃ exactly: the radial constraints taken as infinitely stiff), turned by the smallest rotation
+/// that takes the reference axis tangent at Q̄ onto the current one; the axis is driven by the image displacements of
+/// the surface vertices it carries, averaged with the attachment weights, and kept in shape by axisShapeTargets().
+class GeneralisedCylinder {
+ public:
+  /// Reference surface (#V×3, mm), reference axis (#A×3, #A ≥ 3, mm) and the attachment of the one to the other
+  /// (attachToAxis(referenceSurface, referenceAxis)). Throws Error on a size mismatch or an index beyond the axis.
+  GeneralisedCylinder(const Points& referenceSurface, const Points& referenceAxis, const RadialAttachment& attachment);
+  /// The surface (#V×3, mm) swept by `axis` (#A×3, mm): P_v = Q̄_v + R_v (P̃_v − Q̃̄_v), R_v the smallest rotation from
+  /// the reference to the current unit tangent at the attachment point (vertex tangents by central differences,
+  /// one-sided at the ends, interpolated with the attachment weights). The reference axis gives the reference surface.
+  Points surface(const Points& axis) const;
+  /// Image drive of the axis (#A×3, mm): D_j = Σ_v cj(v) d_v / Σ_v cj(v) over the surface vertices attached to axis
+  /// vertex j (cj their attachment weight, d_v = surfaceDisplacements row v, mm, e.g. the weighted image-target
+  /// offsets); 0 for an axis vertex that carries nothing.
+  Points axisDrive(const Points& surfaceDisplacements) const;
+  /// One step: Q += imageGain · axisDrive(d), then Q += shapeMemory · (axisShapeTargets(Q, Q̃) − Q) (Jacobi). Returns
+  /// the largest axis vertex move, mm. Throws ParameterError for gains outside [0, 1].
+  double step(Points& axis, const Points& surfaceDisplacements, const AxisFirstOptions& opts) const;
+  /// Number of axis vertices.
+  int axisVertexCount() const { return static_cast<int>(refAxis_.rows()); }
+
+ private:
+  /// Unit tangents at the axis vertices (central differences, one-sided at the ends).
+  static Points tangents(const Points& axis);
+  Points refSurface_, refAxis_, refOffset_;  ///< P̃, Q̃, P̃ − Q̃̄
+  RadialAttachment att_;
+  Eigen::VectorXd carried_;                  ///< Σ_v cj(v) per axis vertex
+};
+
 }  // namespace msk

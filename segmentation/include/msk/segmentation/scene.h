@@ -33,6 +33,9 @@ struct ObjectModel {
   bool medialAxis = false;        ///< "medial_axis": a 1-simplex medial axis with two-way radial constraints
   double radialStiffness = -1;    ///< "radial_stiffness": γ of the radial constraints, [0, 1]; < 0 = run default
   double axisSpacingMm = -1;      ///< "axis_spacing_mm": distance between axis vertices, mm, > 0; < 0 = run default
+  /// "axis_first": run the axis-first coarse stage (the object moves as a generalised cylinder of its axis before its
+  /// full-surface evolution; needs "medial_axis"); unset = the run's (SegmentOptions::axisFirst)
+  std::optional<bool> axisFirst;
   bool volumetric = false;        ///< "volumetric": a coupled 3-simplex volume model
   double volumeStiffness = -1;    ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
 };

@@ -9,6 +9,7 @@
 #include "msk/core/constraints.h"
 #include "msk/core/json.h"
 #include "msk/core/log.h"
+#include "msk/core/medial_axis.h"
 #include "msk/core/pbd_solver.h"
 #include "msk/core/volume_simplex.h"
 #include "msk/core/solver.h"
@@ -76,6 +77,13 @@ struct SegmentOptions {
   double radialStiffness = 0.1;   ///< default γ of the radial constraints of objects with a medial axis, [0, 1]
   double axisSpacingMm = 8.0;     ///< default distance between medial-axis vertices, mm
   double axisCentering = 0.5;     ///< γ of the axis re-centring on its surface per step, [0, 1]
+  /// Objects with a medial axis whose model does not set "axis_first" run the axis-first coarse stage: before the
+  /// coarsest level's full-surface evolution the object moves as a generalised cylinder of its axis
+  /// (GeneralisedCylinder, driven by the surface's image targets), and the template bent by the stage's axis is its
+  /// reference shape (shape memory, global prior, axis) from then on
+  bool axisFirst = false;
+  int axisFirstSteps = 40;          ///< step cap of the axis-first stage (it stops earlier on the tolerance), 0..100000
+  AxisFirstOptions axisFirstStage;  ///< image gain and axis shape memory of the axis-first stage
   double volumeStiffness = 0.5;   ///< default γ of the 3-simplex internal constraint of volumetric objects, [0, 1]
   PbdOptions pbd;               ///< time step, damping and drag of every scheme (pbd.iterations ≠ 1: see `iterations`)
   std::optional<Scheme> scheme; ///< evolution scheme (unset = preset)
@@ -93,6 +101,18 @@ struct PairResponse {
   CollisionResponse response;    ///< what was used
 };
 
+/// What the axis-first coarse stage did for one object (report.json "parameters" → "axis_first_stage"; the stages'
+/// total time is SegmentationResult::secondsPerStage["axis-first"], a part of "evolution").
+struct AxisFirstReport {
+  std::string object;         ///< object name
+  int steps = 0;              ///< steps taken
+  bool converged = false;     ///< stopped because no axis vertex moved more than the tolerance (not on the cap)
+  double lastMaxMoveMm = 0;   ///< largest axis vertex move in the last step, mm
+  double meanAxisMoveMm = 0;  ///< mean distance the axis vertices moved over the stage, mm
+  double seconds = 0;         ///< time of the stage, s (image search and the rebuild of the object's constraint sets
+                              ///< about the bent template included)
+};
+
 /// The settings a run actually used after the preset is applied (written into report.json).
 struct ResolvedSettings {
   int levels = 2, maxStepsPerLevel = 60;
@@ -102,6 +122,7 @@ struct ResolvedSettings {
   std::vector<double> rangeMm;   ///< search range per level, coarse first
   SolverOptions solver;          ///< the evolution scheme with all its settings (what Solver runs)
   std::vector<PairResponse> collisionResponses;  ///< per scene pair (scene order), filled by segmentScene()
+  std::vector<AxisFirstReport> axisFirst;        ///< per object that ran the axis-first stage, filled by segmentScene()
 };
 
 /// What one level of one object did.
