@@ -31,7 +31,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
              "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
              "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
-            {"help", "no-qc", "no-collisions", "edge-focusing"});
+            {"help", "no-qc", "no-collisions", "edge-focusing", "axis-first"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
@@ -69,6 +69,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
            "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
+           "  --axis-first                  objects with a medial axis first move as a generalised cylinder\n"
+           "                                (the axis carries the surface; scene key \"axis_first\" per object wins)\n"
            "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
            "                                finest scale's edge next to it (a blurred thin bright shell, e.g.\n"
            "                                CT cortex at 3 mm, shows its edge ~sigma too far out); default off\n"
@@ -119,6 +121,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     throw ParameterError("--muscle-target-step", args.str("muscle-target-step"), "must be in [0, 1000]");
   opts.collisions = !args.has("no-collisions");
   opts.edgeFocusing = args.has("edge-focusing");
+  opts.axisFirst = args.has("axis-first");
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
   opts.collisionFriction = args.num("friction", opts.collisionFriction);
