@@ -202,6 +202,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     report["collision_pairs"] = pairs;
     report["separation_sweeps_run"] = res.separationSweeps;
     report["separation_corrections"] = static_cast<double>(res.separationCorrections);
+    report["overlap_voxels_repaired"] = static_cast<double>(res.overlapVoxelsRepaired);
     Json objects = Json::array();
     std::vector<QcObject> qc;
     for (const auto& o : res.objects) {

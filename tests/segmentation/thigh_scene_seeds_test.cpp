@@ -2,10 +2,8 @@
 // adductors, with the phantom's touching pairs as collision pairs) on five more phantom seeds, oblique and anisotropic
 // grids included. The issue asks for a mean surface distance over objects ≤ 0.8 mm, every Dice ≥ 0.92, no voxel
 // inside two output surfaces and no vertex more than 0.1 mm inside a partner; each is printed per seed with whether it
-// is met. Asserted: Dice ≥ 0.92, mean ASSD ≤ 0.8 mm and penetration ≤ 0.1 mm (met on every seed since muscles' image
-// steps are limited), and, where not every seed meets the issue yet, the level reached: ≤ 5 overlapping voxels
-// (seed 3 has 2) so that a regression shows. The
-// boundary error where the fat septum between two muscles is missing (the image cannot separate them there) is
+// is met. All four are asserted on every seed (zero overlap since the voxel centres the separation's samples miss
+// are handed to one surface, segmentation/overlap_repair.h; seed 3 had 2 such voxels before). The boundary error where the fat septum between two muscles is missing (the image cannot separate them there) is
 // reported apart.
 #include <cstdio>
 #include <string>
@@ -121,8 +119,9 @@ TEST(ThighSceneSeeds, FiveMoreSeedsIncludingObliqueAndAnisotropicGrids) {
     const double meanAssd = assdSum / static_cast<double>(scene.objects.size());
     double deepest = 0;
     for (double d : res.pairPenetrationMm) deepest = std::max(deepest, d);
-    std::printf("%-34s mean ASSD %.3f mm, overlap %zu voxels, deepest penetration %.3f mm, %.1f s\n", "", meanAssd,
-                res.overlapVoxels, deepest, res.seconds);
+    std::printf("%-34s mean ASSD %.3f mm, overlap %zu voxels (%ld handed over after the separation), deepest "
+                "penetration %.3f mm, %.1f s\n",
+                "", meanAssd, res.overlapVoxels, res.overlapVoxelsRepaired, deepest, res.seconds);
     std::printf("%-34s muscle boundary error where septa are missing %.3f mm (%d truth vertices), elsewhere %.3f mm "
                 "(%d)\n",
                 "", missingCount ? missingMm / missingCount : 0.0, missingCount, otherCount ? otherMm / otherCount : 0.0,
@@ -131,7 +130,7 @@ TEST(ThighSceneSeeds, FiveMoreSeedsIncludingObliqueAndAnisotropicGrids) {
                 meanAssd <= 0.8 ? "met" : "NOT met", res.overlapVoxels == 0 ? "met" : "NOT met",
                 deepest <= 0.1 ? "met" : "NOT met");
     EXPECT_LE(meanAssd, 0.8) << what;
-    EXPECT_LE(res.overlapVoxels, 5u) << what;
+    EXPECT_EQ(res.overlapVoxels, 0u) << what;
     EXPECT_LE(deepest, 0.1) << what;
     EXPECT_GT(missingCount, 0) << what << ": the phantom should have muscle boundaries without a septum";
   }

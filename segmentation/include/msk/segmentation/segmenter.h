@@ -168,6 +168,9 @@ struct SegmentationResult {
   std::vector<double> pairPenetrationMm;
   int separationSweeps = 0;      ///< sweeps the output-surface separation ran
   long separationCorrections = 0;  ///< vertex corrections it applied
+  /// Voxel centres left inside both surfaces of a declared pair by the separation (edges crossing between its
+  /// samples) that were handed to one of the two (its closest triangle moved inward past the centre)
+  long overlapVoxelsRepaired = 0;
 };
 
 /// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).
