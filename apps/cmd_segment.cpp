@@ -28,7 +28,7 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
+             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "range-coarse-extra", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
              "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
             {"help", "no-qc", "no-collisions", "edge-focusing", "axis-first"});
@@ -68,6 +68,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
            "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
+           "  --range-coarse-extra MM       the length added at the coarsest level (default 2)\n"
            "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
            "  --axis-first                  objects with a medial axis first move as a generalised cylinder\n"
            "                                (the axis carries the surface; scene key \"axis_first\" per object wins)\n"
@@ -113,6 +114,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.sigmaCoarse = args.num("sigma-coarse", opts.sigmaCoarse);
   opts.rangeFine = args.num("range-fine", opts.rangeFine);
   opts.rangeCoarse = args.num("range-coarse", opts.rangeCoarse);
+  opts.rangeCoarseExtraMm = args.num("range-coarse-extra", opts.rangeCoarseExtraMm);
   opts.edgePenalty = args.num("edge-penalty", opts.edgePenalty);
   opts.farTargetScaleMm = args.num("far-target", opts.farTargetScaleMm);
   if (!(opts.farTargetScaleMm >= 0)) throw ParameterError("--far-target", args.str("far-target"), "must be >= 0 mm");

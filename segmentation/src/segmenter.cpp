@@ -172,7 +172,7 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   for (int l = 0; l < s.levels; ++l) {
     const double f = s.levels == 1 ? 0.0 : 1.0 - static_cast<double>(l) / (s.levels - 1);  // 1 coarse → 0 fine
     s.sigmaMm.push_back(minSp * (s.sigmaFineVoxels + (o.sigmaCoarse - s.sigmaFineVoxels) * f));
-    s.rangeMm.push_back(maxSp * (o.rangeFine + (o.rangeCoarse - o.rangeFine) * f) + 2.0 * f);
+    s.rangeMm.push_back(maxSp * (o.rangeFine + (o.rangeCoarse - o.rangeFine) * f) + o.rangeCoarseExtraMm * f);
   }
   return s;
 }
@@ -216,6 +216,7 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["sigma_coarse_voxels"] = o.sigmaCoarse;
   j["range_fine_voxels"] = o.rangeFine;
   j["range_coarse_voxels"] = o.rangeCoarse;
+  j["range_coarse_extra_mm"] = o.rangeCoarseExtraMm;
   j["edge_penalty_per_mm"] = o.edgePenalty;
   j["edge_focusing"] = o.edgeFocusing;
   j["muscle_target_step_edges"] = o.muscleTargetStepEdges;
@@ -604,6 +605,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   validateSolverOptions(resolveSettings(opts, Grid{}).solver);  // throws on bad scheme settings
   for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine.value_or(0.5), 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
                              std::tuple{"range fine", opts.rangeFine, 20.0}, std::tuple{"range coarse", opts.rangeCoarse, 20.0},
+                             std::tuple{"range coarse extra mm", opts.rangeCoarseExtraMm, 1000.0},
                              std::tuple{"edge penalty", opts.edgePenalty, 10.0}})
     if (!(v >= 0 && v <= hi)) throw ParameterError(name, std::to_string(v), "must be in [0, " + std::to_string(hi) + "]");
   if (!(opts.rangeFine > 0)) throw ParameterError("range fine", std::to_string(opts.rangeFine), "must be positive");

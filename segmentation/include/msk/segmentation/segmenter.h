@@ -48,7 +48,10 @@ struct SegmentOptions {
   std::optional<double> sigmaFine;
   double sigmaCoarse = 1.5;   ///< σ at the coarsest level, same units (levels in between interpolate)
   double rangeFine = 1.5;     ///< search range ± at the finest level, in units of the largest voxel spacing
-  double rangeCoarse = 3.0;   ///< search range at the coarsest level, same units, plus 2 mm
+  double rangeCoarse = 3.0;   ///< search range at the coarsest level, same units, plus rangeCoarseExtraMm
+  /// Length added to the coarsest level's search range, mm (levels in between get their share), ≥ 0: a capture reach
+  /// beyond the voxel-relative range. A length like the collision gap, so it scales with the image's units.
+  double rangeCoarseExtraMm = 2.0;
   double farTargetScaleMm = 0;  ///< > 0: a target d mm away pulls with weight 1/(1 + (d/scale)²) (robust to outliers)
   double edgePenalty = 0.1;   ///< score lost per mm of distance from the vertex (relative to the best edge)
   /// Gradient force at the levels coarser than the finest: relocate each edge found at the level's scale to the
