@@ -10,6 +10,7 @@
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
+#include "test_support.h"
 
 namespace {
 
@@ -53,21 +54,7 @@ msk::Grid tubeGrid() {
 
 /// The tube as an image with partial volume (4³ samples per voxel): 800 inside, 200 outside.
 msk::ImageF tubeImage(const msk::Grid& g, const BentTube& t) {
-  msk::ImageF img(g, 200.f);
-  const int ss = 4;
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        int in = 0;
-        for (int a = 0; a < ss; ++a)
-          for (int b = 0; b < ss; ++b)
-            for (int c = 0; c < ss; ++c)
-              in += t.inside(
-                  g.toWorld(Vec3(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5)));
-        const double f = static_cast<double>(in) / (ss * ss * ss);
-        img.at(i, j, k) = static_cast<float>(800.0 * f + 200.0 * (1.0 - f));
-      }
-  return img;
+  return msk::test::partialVolumeImage(g, [&](const Vec3& x) { return t.inside(x); }, 800.f, 200.f);
 }
 
 /// One muscle with a medial axis, axis-first on or off in its model.

@@ -12,6 +12,7 @@
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
 #include "msk/segmentation/segmenter.h"
+#include "test_support.h"
 
 namespace {
 
@@ -26,22 +27,8 @@ msk::Grid boxGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& halfWid
 
 /// A ball of radius r about `center` with partial volume (4³ samples per voxel): `inside` in, `outside` out.
 msk::ImageF ballImage(const msk::Grid& g, const Eigen::Vector3d& center, double r, float inside, float outside) {
-  msk::ImageF img(g, outside);
-  const int ss = 4;
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        int in = 0;
-        for (int a = 0; a < ss; ++a)
-          for (int b = 0; b < ss; ++b)
-            for (int c = 0; c < ss; ++c) {
-              const Eigen::Vector3d ijk(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5);
-              in += (g.toWorld(ijk) - center).squaredNorm() <= r * r;
-            }
-        const double f = static_cast<double>(in) / (ss * ss * ss);
-        img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
-      }
-  return img;
+  return msk::test::partialVolumeImage(
+      g, [&](const Eigen::Vector3d& x) { return (x - center).squaredNorm() <= r * r; }, inside, outside);
 }
 
 msk::Scene oneObject(const msk::TriangleMesh& templ) {

@@ -7,29 +7,16 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
+#include "test_support.h"
 
 namespace {
 
 /// A ball (or ellipsoid with semi-axes `axes`) image with partial volume: `inside` in, `outside` out.
 msk::ImageF ellipsoidImage(const msk::Grid& g, const Eigen::Vector3d& center, const Eigen::Vector3d& axes,
                            float inside, float outside) {
-  msk::ImageF img(g, outside);
-  const int ss = 4;
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        int in = 0;
-        for (int a = 0; a < ss; ++a)
-          for (int b = 0; b < ss; ++b)
-            for (int c = 0; c < ss; ++c) {
-              const Eigen::Vector3d ijk(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5);
-              const Eigen::Vector3d q = (g.toWorld(ijk) - center).cwiseQuotient(axes);
-              in += q.squaredNorm() <= 1.0;
-            }
-        const double f = static_cast<double>(in) / (ss * ss * ss);
-        img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
-      }
-  return img;
+  return msk::test::partialVolumeImage(
+      g, [&](const Eigen::Vector3d& x) { return (x - center).cwiseQuotient(axes).squaredNorm() <= 1.0; }, inside,
+      outside);
 }
 
 msk::Grid cubeGrid(double spacing, double halfWidthMm, const Eigen::Vector3d& rotDeg = Eigen::Vector3d::Zero()) {

@@ -156,6 +156,25 @@ LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eig
   return cropAny(labels, lo, hi);
 }
 
+ImageF partialVolumeImage(const Grid& grid, const std::function<bool(const Eigen::Vector3d&)>& isInside, float inside,
+                          float outside) {
+  ImageF img(grid, outside);
+  const int ss = 4;
+  for (int k = 0; k < grid.dims[2]; ++k)
+    for (int j = 0; j < grid.dims[1]; ++j)
+      for (int i = 0; i < grid.dims[0]; ++i) {
+        int in = 0;
+        for (int a = 0; a < ss; ++a)
+          for (int b = 0; b < ss; ++b)
+            for (int c = 0; c < ss; ++c)
+              in += isInside(grid.toWorld(Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5,
+                                                          k + (c + 0.5) / ss - 0.5)));
+        const double f = static_cast<double>(in) / (ss * ss * ss);
+        img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
+      }
+  return img;
+}
+
 TriangleMesh joinedMeshes(const TriangleMesh& a, const TriangleMesh& b) {
   TriangleMesh m = a;
   m.vertices.conservativeResize(a.vertexCount() + b.vertexCount(), 3);

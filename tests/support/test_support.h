@@ -1,6 +1,7 @@
 #pragma once
 /// Shared test helpers: scratch folders, the real-data folder, running the mskseg program, and the real-scan helpers
 /// (label centroids, contralateral templates, cropping).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,11 @@ TriangleMesh mirroredTemplate(const LabelMap& labels, int fromLabel, double midX
 
 /// One mesh holding both surfaces (b's vertices after a's, its faces renumbered): a surface covering some points
 /// twice, or with a turned-over sheet when b's faces are reversed.
+/// An image on `grid` with partial volume: each voxel is `inside` × f + `outside` × (1 − f), f the share of its 4³
+/// sub-samples (world points) for which `isInside` holds.
+ImageF partialVolumeImage(const Grid& grid, const std::function<bool(const Eigen::Vector3d&)>& isInside, float inside,
+                          float outside);
+
 TriangleMesh joinedMeshes(const TriangleMesh& a, const TriangleMesh& b);
 
 /// The mesh scaled by `scale` about its vertex centroid, then moved by `offsetMm` (a template never exactly in place).
