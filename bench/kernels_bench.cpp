@@ -172,7 +172,8 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
     switch (mode) {
       case BatchMode::Jacobi: skipped = batch.jacobiSweep(p, w, 1.5); break;
       case BatchMode::JacobiCounted:
-        skipped = batch.computeRange(p, w, 0, n);
+        batch.loadRange(p, w, 0, n);
+        skipped = batch.computeRange(0, n);
         counts.setZero();
         batch.addCounts(w, counts);
         batch.scaleRange(counts, 1.5, 0, n);

@@ -11,7 +11,7 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// A wide path with AVX2 (256-bit doubles, hardware gathers; eight rows per step as two 4-lane packs), compiled for that
+// A wide path with AVX2 (256-bit doubles; eight rows per step as two 4-lane packs), compiled for that
 // instruction set function by function and chosen at run time when the processor has it; the project's flags (no
 // -march) stay as they are.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__SSE2__)
@@ -35,19 +35,19 @@ namespace {
 #define MSK_BATCH_INLINE inline
 #endif
 
-/// The arrays one sweep reads and writes: positions and inverse masses seen from the set's first particle (Points is
-/// column-major, so x, y and z are each contiguous), and the rows in the pass's order: vertex order (order unused) or
-/// colour order (order[i] the vertex of position i).
+/// The arrays one sweep reads and writes: the packed working copy (particle v's x, y, z, w at 4v, local indices,
+/// 32-byte aligned), and the rows in the pass's order: vertex order (order unused) or colour order (order[i] the
+/// vertex of position i).
 struct BatchArrays {
-  double *x, *y, *z;
-  const double* w;
+  double* pos;
   const int *order, *n0, *n1, *n2;
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction: d and the coefficients cj (inverse masses included).
+/// Where computeRows() writes each row's Jacobi correction: d (row r's x, y, z, 0 at 4r, 32-byte aligned) and the
+/// coefficients cj (inverse masses included).
 struct JacobiOut {
-  double *dx, *dy, *dz, *c0, *c1, *c2, *c3;
+  double *d, *c0, *c1, *c2, *c3;
   std::uint8_t* kept;
 };
 
@@ -56,7 +56,7 @@ struct JacobiOut {
 struct JacobiView {
   std::ptrdiff_t n;
   const int *flat, *row;
-  const double *c, *dx, *dy, *dz;
+  const double *c, *d;
   double post;  ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
 };
 
@@ -139,26 +139,79 @@ inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { retu
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
 #endif
 
-/// Two indices (the 2-lane packs gather element by element).
-struct Idx2 {
-  int i[2];
-};
-inline Idx2 loadIdx(const int* p) { return {{p[0], p[1]}}; }
-inline Idx2 iota(int r) { return {{r, r + 1}}; }
-inline Idx2 gatherIdx(const int* base, Idx2 k) { return {{base[k.i[0]], base[k.i[1]]}}; }
-inline void storeIdx(Idx2 k, int* out) {
-  out[0] = k.i[0];
-  out[1] = k.i[1];
-}
+// One particle's packed x, y, z, w (Q) and the moves between packed particles and packs of 2 rows.
 #if defined(__SSE2__)
-inline D2 gather(const double* b, Idx2 k) { return {_mm_set_pd(b[k.i[1]], b[k.i[0]])}; }
+struct Q2 {
+  __m128d xy, zw;
+};
+inline Q2 loadQ(const double* p) { return {_mm_load_pd(p), _mm_load_pd(p + 2)}; }
+inline void storeQ(Q2 q, double* p) {
+  _mm_store_pd(p, q.xy);
+  _mm_store_pd(p + 2, q.zw);
+}
+inline Q2 splatQ(double a) { return {_mm_set1_pd(a), _mm_set1_pd(a)}; }
+inline Q2 operator+(Q2 a, Q2 b) { return {_mm_add_pd(a.xy, b.xy), _mm_add_pd(a.zw, b.zw)}; }
+inline Q2 operator*(Q2 a, Q2 b) { return {_mm_mul_pd(a.xy, b.xy), _mm_mul_pd(a.zw, b.zw)}; }
+/// x, y, z of `u`, w of `old`.
+inline Q2 keepW(Q2 u, Q2 old) { return {u.xy, _mm_move_sd(old.zw, u.zw)}; }
+/// The x, y, z, w packs of the particles idx[0], idx[1] of `pos`.
+inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D2& w) {
+  const double* p0 = pos + 4 * static_cast<std::ptrdiff_t>(idx[0]);
+  const double* p1 = pos + 4 * static_cast<std::ptrdiff_t>(idx[1]);
+  const __m128d a = _mm_load_pd(p0), b = _mm_load_pd(p1), c = _mm_load_pd(p0 + 2), d = _mm_load_pd(p1 + 2);
+  x.v = _mm_unpacklo_pd(a, b);
+  y.v = _mm_unpackhi_pd(a, b);
+  z.v = _mm_unpacklo_pd(c, d);
+  w.v = _mm_unpackhi_pd(c, d);
+}
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) {
+  const __m128d zero = _mm_setzero_pd();
+  out[0] = {_mm_unpacklo_pd(x.v, y.v), _mm_unpacklo_pd(z.v, zero)};
+  out[1] = {_mm_unpackhi_pd(x.v, y.v), _mm_unpackhi_pd(z.v, zero)};
+}
+/// Lane k of x, y, z: in[k]'s.
+inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
+  x.v = _mm_unpacklo_pd(in[0].xy, in[1].xy);
+  y.v = _mm_unpackhi_pd(in[0].xy, in[1].xy);
+  z.v = _mm_unpacklo_pd(in[0].zw, in[1].zw);
+}
 #else
-inline D2 gather(const double* b, Idx2 k) { return {{b[k.i[0]], b[k.i[1]]}}; }
+struct Q2 {
+  double v[4];
+};
+inline Q2 loadQ(const double* p) { return {{p[0], p[1], p[2], p[3]}}; }
+inline void storeQ(Q2 q, double* p) {
+  for (int i = 0; i < 4; ++i) p[i] = q.v[i];
+}
+inline Q2 splatQ(double a) { return {{a, a, a, a}}; }
+inline Q2 operator+(Q2 a, Q2 b) { return {{a.v[0] + b.v[0], a.v[1] + b.v[1], a.v[2] + b.v[2], a.v[3] + b.v[3]}}; }
+inline Q2 operator*(Q2 a, Q2 b) { return {{a.v[0] * b.v[0], a.v[1] * b.v[1], a.v[2] * b.v[2], a.v[3] * b.v[3]}}; }
+inline Q2 keepW(Q2 u, Q2 old) { return {{u.v[0], u.v[1], u.v[2], old.v[3]}}; }
+inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D2& w) {
+  for (int k = 0; k < 2; ++k) {
+    const double* p = pos + 4 * static_cast<std::ptrdiff_t>(idx[k]);
+    x.v[k] = p[0];
+    y.v[k] = p[1];
+    z.v[k] = p[2];
+    w.v[k] = p[3];
+  }
+}
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) {
+  for (int k = 0; k < 2; ++k) out[k] = {{x.v[k], y.v[k], z.v[k], 0.0}};
+}
+inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
+  for (int k = 0; k < 2; ++k) {
+    x.v[k] = in[k].v[0];
+    y.v[k] = in[k].v[1];
+    z.v[k] = in[k].v[2];
+  }
+}
 #endif
 
 namespace lanes2 {
 using Pack = D2;
-using Idx = Idx2;
+using Q = Q2;
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes2
 
@@ -176,20 +229,6 @@ struct D4 {
   __m256d v;
 };
 inline D4 splat(double a) { return {_mm256_set1_pd(a)}; }
-/// Four indices in one register.
-struct Idx {
-  __m128i v;
-};
-inline Idx loadIdx(const int* p) { return {_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))}; }
-inline Idx iota(int r) { return {_mm_add_epi32(_mm_set1_epi32(r), _mm_setr_epi32(0, 1, 2, 3))}; }
-// The masked forms (all lanes on) say what the unmasked ones leave undefined, which GCC 12 warns about.
-inline Idx gatherIdx(const int* base, Idx k) {
-  return {_mm_mask_i32gather_epi32(_mm_setzero_si128(), base, k.v, _mm_set1_epi32(-1), 4)};
-}
-inline void storeIdx(Idx k, int* out) { _mm_storeu_si128(reinterpret_cast<__m128i*>(out), k.v); }
-inline D4 gather(const double* b, Idx k) {
-  return {_mm256_mask_i32gather_pd(_mm256_setzero_pd(), b, k.v, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8)};
-}
 inline D4 loadu(const double* p) { return {_mm256_loadu_pd(p)}; }
 inline void storeu(D4 a, double* out) { _mm256_storeu_pd(out, a.v); }
 inline D4 operator+(D4 a, D4 b) { return {_mm256_add_pd(a.v, b.v)}; }
@@ -210,19 +249,56 @@ inline D4 operator~(D4 m) { return {_mm256_xor_pd(m.v, _mm256_castsi256_pd(_mm25
 inline D4 select(D4 m, D4 a, D4 b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
 inline D4 flipSign(D4 a, D4 s) { return {_mm256_xor_pd(a.v, _mm256_and_pd(s.v, _mm256_set1_pd(-0.0)))}; }
 inline int bits(D4 m) { return _mm256_movemask_pd(m.v); }
+/// One particle's packed x, y, z, w (+ and · are the compilers' own vector arithmetic on __m256d).
+using Q = __m256d;
+inline Q loadQ(const double* p) { return _mm256_load_pd(p); }
+inline void storeQ(Q q, double* p) { _mm256_store_pd(p, q); }
+inline Q splatQ(double a) { return _mm256_set1_pd(a); }
+/// x, y, z of `u`, w of `old`.
+inline Q keepW(Q u, Q old) { return _mm256_blend_pd(u, old, 0x8); }
+/// The x, y, z, w packs of the particles idx[0..3] of `pos` (four 32-byte rows transposed: loads of halves, unpacks).
+inline void loadPoints(const double* pos, const int* idx, D4& x, D4& y, D4& z, D4& w) {
+  const double* p0 = pos + 4 * static_cast<std::ptrdiff_t>(idx[0]);
+  const double* p1 = pos + 4 * static_cast<std::ptrdiff_t>(idx[1]);
+  const double* p2 = pos + 4 * static_cast<std::ptrdiff_t>(idx[2]);
+  const double* p3 = pos + 4 * static_cast<std::ptrdiff_t>(idx[3]);
+  const __m256d a = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0)), _mm_load_pd(p2), 1);  // x0 y0 x2 y2
+  const __m256d b = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1)), _mm_load_pd(p3), 1);  // x1 y1 x3 y3
+  const __m256d c = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0 + 2)), _mm_load_pd(p2 + 2), 1);
+  const __m256d d = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1 + 2)), _mm_load_pd(p3 + 2), 1);
+  x.v = _mm256_unpacklo_pd(a, b);
+  y.v = _mm256_unpackhi_pd(a, b);
+  z.v = _mm256_unpacklo_pd(c, d);
+  w.v = _mm256_unpackhi_pd(c, d);
+}
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D4 x, D4 y, D4 z, Q* out) {
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d t0 = _mm256_unpacklo_pd(x.v, y.v), t1 = _mm256_unpackhi_pd(x.v, y.v);  // x0 y0 x2 y2, x1 y1 x3 y3
+  const __m256d t2 = _mm256_unpacklo_pd(z.v, zero), t3 = _mm256_unpackhi_pd(z.v, zero);  // z0 0 z2 0, z1 0 z3 0
+  out[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+  out[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+  out[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+  out[3] = _mm256_permute2f128_pd(t1, t3, 0x31);
+}
+/// Lane k of x, y, z: in[k]'s.
+inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
+  const __m256d a = _mm256_permute2f128_pd(in[0], in[2], 0x20), b = _mm256_permute2f128_pd(in[1], in[3], 0x20);
+  const __m256d c = _mm256_permute2f128_pd(in[0], in[2], 0x31), d = _mm256_permute2f128_pd(in[1], in[3], 0x31);
+  x.v = _mm256_unpacklo_pd(a, b);
+  y.v = _mm256_unpackhi_pd(a, b);
+  z.v = _mm256_unpacklo_pd(c, d);
+}
 }  // namespace lanes4
 
 
 namespace lanes8 {
 // Eight rows as two independent 4-lane packs in lockstep: twice the independent work between the long-latency steps
-// (gathers, square root, divisions) of one row.
+// (loads, square root, divisions) of one row.
 using lanes4::D4;
 struct D8 {
   static constexpr int lanes = 8;
   D4 lo, hi;
-};
-struct Idx {
-  lanes4::Idx lo, hi;
 };
 inline D8 splat(double a) { return {lanes4::splat(a), lanes4::splat(a)}; }
 inline D8 loadu(const double* p) { return {lanes4::loadu(p), lanes4::loadu(p + 4)}; }
@@ -230,14 +306,6 @@ inline void storeu(D8 a, double* out) {
   lanes4::storeu(a.lo, out);
   lanes4::storeu(a.hi, out + 4);
 }
-inline Idx loadIdx(const int* p) { return {lanes4::loadIdx(p), lanes4::loadIdx(p + 4)}; }
-inline Idx iota(int r) { return {lanes4::iota(r), lanes4::iota(r + 4)}; }
-inline Idx gatherIdx(const int* base, Idx k) { return {lanes4::gatherIdx(base, k.lo), lanes4::gatherIdx(base, k.hi)}; }
-inline void storeIdx(Idx k, int* out) {
-  lanes4::storeIdx(k.lo, out);
-  lanes4::storeIdx(k.hi, out + 4);
-}
-inline D8 gather(const double* b, Idx k) { return {lanes4::gather(b, k.lo), lanes4::gather(b, k.hi)}; }
 #define MSK_D8_BINARY(op, f) \
   inline D8 op(D8 a, D8 b) { return {lanes4::f(a.lo, b.lo), lanes4::f(a.hi, b.hi)}; }
 inline D8 operator+(D8 a, D8 b) { return {a.lo + b.lo, a.hi + b.hi}; }
@@ -259,6 +327,24 @@ inline D8 vsqrt(D8 a) { return {lanes4::vsqrt(a.lo), lanes4::vsqrt(a.hi)}; }
 inline D8 vabs(D8 a) { return {lanes4::vabs(a.lo), lanes4::vabs(a.hi)}; }
 inline D8 select(D8 m, D8 a, D8 b) { return {lanes4::select(m.lo, a.lo, b.lo), lanes4::select(m.hi, a.hi, b.hi)}; }
 inline int bits(D8 m) { return lanes4::bits(m.lo) | (lanes4::bits(m.hi) << 4); }
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+// Q + Q and Q · Q: the compilers' own vector arithmetic on __m256d (vaddpd, vmulpd).
+inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
+  lanes4::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
+  lanes4::loadPoints(pos, idx + 4, x.hi, y.hi, z.hi, w.hi);
+}
+inline void toQ(D8 x, D8 y, D8 z, Q* out) {
+  lanes4::toQ(x.lo, y.lo, z.lo, out);
+  lanes4::toQ(x.hi, y.hi, z.hi, out + 4);
+}
+inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
+  lanes4::fromQ(in, x.lo, y.lo, z.lo);
+  lanes4::fromQ(in + 4, x.hi, y.hi, z.hi);
+}
 
 using Pack = D8;
 #include "simplex_batch_kernel.inc"
@@ -340,7 +426,8 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     ceps2_[i] = eps2_[v];
     chr_[i] = hr_[v];
   }
-  for (auto* a : {&dx_, &dy_, &dz_}) a->assign(un, 0.0);
+  pos_.assign(4 * un + 8, 0.0);
+  d_.assign(4 * un + 8, 0.0);
   c_.assign(4 * un, 0.0);
   // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
   revStart_.assign(un + 1, 0);
@@ -381,43 +468,83 @@ void SimplexInternalBatch::checkSizes(const Points& p, const Eigen::VectorXd& w)
              "simplex internal batch: size mismatch");
 }
 
+void SimplexInternalBatch::checkRange(int begin, int end) const {
+  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
+}
+
+double* SimplexInternalBatch::aligned(std::vector<double>& buffer) {
+  const auto at = reinterpret_cast<std::uintptr_t>(buffer.data());
+  return buffer.data() + ((64 - at % 64) % 64) / sizeof(double);
+}
+
+const double* SimplexInternalBatch::aligned(const std::vector<double>& buffer) {
+  return aligned(const_cast<std::vector<double>&>(buffer));
+}
+
+void SimplexInternalBatch::loadRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
+  checkSizes(p, w);
+  checkRange(begin, end);
+  const double* x = p.data() + first_;
+  const double* y = x + p.rows();
+  const double* z = y + p.rows();
+  const double* wv = w.data() + first_;
+  double* q = aligned(pos_);
+  for (int v = begin; v < end; ++v) {
+    double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    at[0] = x[v];
+    at[1] = y[v];
+    at[2] = z[v];
+    at[3] = wv[v];
+  }
+}
+
+void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
+  MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size(), "simplex internal batch: size mismatch");
+  checkRange(begin, end);
+  double* x = p.data() + first_;
+  double* y = x + p.rows();
+  double* z = y + p.rows();
+  const double* q = aligned(pos_);
+  for (int v = begin; v < end; ++v) {
+    const double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    x[v] = at[0];
+    y[v] = at[1];
+    z[v] = at[2];
+  }
+}
+
 namespace {
-BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const std::vector<int>& order,
-                     const std::vector<int>& n0, const std::vector<int>& n1, const std::vector<int>& n2,
-                     const std::vector<double>& e0, const std::vector<double>& e1, const std::vector<double>& e2,
-                     const std::vector<double>& hr) {
-  double* base = const_cast<double*>(p.data());  // written only by the sweeps that take Points&
-  const Eigen::Index rows = p.rows();
-  return BatchArrays{base + first,   base + rows + first, base + 2 * rows + first,
-                     w.data() + first, order.data(),       n0.data(),
-                     n1.data(),        n2.data(),          e0.data(),
-                     e1.data(),        e2.data(),          hr.data()};
+BatchArrays arraysOf(double* pos, const std::vector<int>& order, const std::vector<int>& n0,
+                     const std::vector<int>& n1, const std::vector<int>& n2, const std::vector<double>& e0,
+                     const std::vector<double>& e1, const std::vector<double>& e2, const std::vector<double>& hr) {
+  return BatchArrays{pos,       order.data(), n0.data(), n1.data(), n2.data(),
+                     e0.data(), e1.data(),    e2.data(), hr.data()};
 }
 }  // namespace
 
-int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const {
-  checkSizes(p, w);
-  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
+int SimplexInternalBatch::projectRange(int begin, int end) {
+  checkRange(begin, end);
+  const BatchArrays a = arraysOf(aligned(pos_), order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
 #if MSK_BATCH_AVX
   if (wide_) return lanes8::projectRows(a, gamma_, begin, end);
 #endif
   return lanes2::projectRows(a, gamma_, begin, end);
 }
 
-int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) const {
+int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) {
+  loadRange(p, w, 0, size());
   int skipped = 0;
-  for (int k = 0; k < colours(); ++k) skipped += projectRange(p, w, colourBegin(k), colourBegin(k + 1));
+  for (int k = 0; k < colours(); ++k) skipped += projectRange(colourBegin(k), colourBegin(k + 1));
+  storeRange(p, 0, size());
   return skipped;
 }
 
-int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
-  checkSizes(p, w);
-  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+int SimplexInternalBatch::computeRange(int begin, int end) {
+  checkRange(begin, end);
+  const BatchArrays a = arraysOf(aligned(pos_), order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
   const size_t n = order_.size();
   double* c = c_.data();
-  const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
+  const JacobiOut o{aligned(d_), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
 #if MSK_BATCH_AVX
   if (wide_) return lanes8::computeRows(a, gamma_, begin, end, o);
 #endif
@@ -456,13 +583,14 @@ void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omeg
   // ω / m for the usual counts m (a closed 2-simplex mesh alone gives 4), a division beyond.
   double share[9];
   for (int m = 0; m < 9; ++m) share[m] = omega / std::max(m, 1);
+  double* d = aligned(d_);
   for (int v = begin; v < end; ++v) {
     const size_t r = static_cast<size_t>(v);
     const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
     const double scale = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
-    dx_[r] *= scale;
-    dy_[r] *= scale;
-    dz_[r] *= scale;
+    d[4 * r] *= scale;
+    d[4 * r + 1] *= scale;
+    d[4 * r + 2] *= scale;
   }
 }
 
@@ -472,8 +600,8 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   double* x = p.data() + first_;
   double* y = x + p.rows();
   double* z = y + p.rows();
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), dx_.data(),
-                     dy_.data(), dz_.data(), post};
+  const double* d = aligned(d_);
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), d, post};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
@@ -487,9 +615,9 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
     for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e) {
       const size_t r = static_cast<size_t>(revRow_[static_cast<size_t>(e)]);
       const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])];
-      ax += c * dx_[r];
-      ay += c * dy_[r];
-      az += c * dz_[r];
+      ax += c * d[4 * r];
+      ay += c * d[4 * r + 1];
+      az += c * d[4 * r + 2];
     }
     x[v] += post * ax;
     y[v] += post * ay;
@@ -500,7 +628,8 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
 void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { applyScaled(p, begin, end, 1.0); }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
-  const int skipped = computeRange(p, w, 0, size());
+  loadRange(p, w, 0, size());
+  const int skipped = computeRange(0, size());
   const auto free = w.segment(first_, size()).array();
   if (skipped == 0 && uniform4_ && (free > 0).all()) {
     // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.

@@ -173,10 +173,12 @@ struct Solver::Impl {
   /// One sweep of set `s` over p in coloured order: PBD (xpbdStep ≤ 0) or XPBD with substep h = xpbdStep.
   void colouredSweep(ConstraintSet& s, double xpbdStep) {
     if (SimplexInternalBatch* b = xpbdStep <= 0 ? batchOf(s) : nullptr) {
+      pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
       for (int k = 0; k < b->colours(); ++k) {
         const int begin = b->colourBegin(k);
-        pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(p, w, begin + lo, begin + hi); });
+        pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(begin + lo, begin + hi); });
       }
+      pool.run(b->size(), [&](int lo, int hi) { b->storeRange(p, lo, hi); });
       return;
     }
     SetCache& c = cacheFor(s);
@@ -214,7 +216,8 @@ struct Solver::Impl {
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
-        pool.run(b->size(), [&](int lo, int hi) { b->computeRange(p, w, lo, hi); });
+        pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
+        pool.run(b->size(), [&](int lo, int hi) { b->computeRange(lo, hi); });
         b->addCounts(w, counts);
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
