@@ -289,6 +289,40 @@ inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
   y.v = _mm256_unpackhi_pd(a, b);
   z.v = _mm256_unpacklo_pd(c, d);
 }
+/// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (x, y, z, w at 4v), four at a
+/// time; returns the first particle not done.
+int packParticles(const double* x, const double* y, const double* z, const double* w, double* pos, int begin,
+                  int end) {
+  int v = begin;
+  for (; v + 4 <= end; v += 4) {
+    const __m256d X = _mm256_loadu_pd(x + v), Y = _mm256_loadu_pd(y + v), Z = _mm256_loadu_pd(z + v),
+                  W = _mm256_loadu_pd(w + v);
+    const __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);  // x0 y0 x2 y2, x1 y1 x3 y3
+    const __m256d t2 = _mm256_unpacklo_pd(Z, W), t3 = _mm256_unpackhi_pd(Z, W);  // z0 w0 z2 w2, z1 w1 z3 w3
+    double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
+    _mm256_store_pd(at, _mm256_permute2f128_pd(t0, t2, 0x20));
+    _mm256_store_pd(at + 4, _mm256_permute2f128_pd(t1, t3, 0x20));
+    _mm256_store_pd(at + 8, _mm256_permute2f128_pd(t0, t2, 0x31));
+    _mm256_store_pd(at + 12, _mm256_permute2f128_pd(t1, t3, 0x31));
+  }
+  return v;
+}
+/// The packed copy's x, y, z of particles [begin, end) back into the column arrays, four at a time; returns the first
+/// particle not done.
+int unpackParticles(const double* pos, double* x, double* y, double* z, int begin, int end) {
+  int v = begin;
+  for (; v + 4 <= end; v += 4) {
+    const double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
+    const __m256d q0 = _mm256_load_pd(at), q1 = _mm256_load_pd(at + 4), q2 = _mm256_load_pd(at + 8),
+                  q3 = _mm256_load_pd(at + 12);
+    const __m256d a = _mm256_permute2f128_pd(q0, q2, 0x20), b = _mm256_permute2f128_pd(q1, q3, 0x20);
+    const __m256d c = _mm256_permute2f128_pd(q0, q2, 0x31), d = _mm256_permute2f128_pd(q1, q3, 0x31);
+    _mm256_storeu_pd(x + v, _mm256_unpacklo_pd(a, b));
+    _mm256_storeu_pd(y + v, _mm256_unpackhi_pd(a, b));
+    _mm256_storeu_pd(z + v, _mm256_unpacklo_pd(c, d));
+  }
+  return v;
+}
 }  // namespace lanes4
 
 
@@ -355,13 +389,163 @@ using Pack = D8;
 #pragma GCC pop_options
 #endif
 
+// ------------------------------------------------------------------------------------------------ eight lanes (AVX-512)
+
+// Eight rows in one 512-bit pack, 32 vector registers (AVX-512 F, DQ, VL), chosen at run time like AVX2. Masks are
+// kept as all-ones / all-zeros lanes, as on the narrower paths, and the same operations run lane by lane: no fused
+// multiply-add (contraction off), so the results are bitwise those of the SSE2 and AVX2 paths.
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2,avx512f,avx512dq,avx512vl"))), apply_to = function)
+#pragma clang fp contract(off)
+#else
+#pragma GCC push_options
+#pragma GCC target("avx2,avx512f,avx512dq,avx512vl")
+#pragma GCC optimize("fp-contract=off")
+// GCC 12's AVX-512 intrinsics start from _mm512_undefined_pd(), which -Wmaybe-uninitialized reports at every use.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+namespace lanes16 {
+struct D8 {
+  static constexpr int lanes = 8;
+  __m512d v;
+};
+inline __m512i bitsOf(D8 a) { return _mm512_castpd_si512(a.v); }
+inline D8 fromBits(__m512i a) { return {_mm512_castsi512_pd(a)}; }
+/// All-ones lanes where `k` is set.
+inline D8 maskOf(__mmask8 k) { return fromBits(_mm512_maskz_set1_epi64(k, -1)); }
+inline __mmask8 maskBits(D8 m) { return _mm512_test_epi64_mask(bitsOf(m), bitsOf(m)); }
+inline D8 splat(double a) { return {_mm512_set1_pd(a)}; }
+inline D8 loadu(const double* p) { return {_mm512_loadu_pd(p)}; }
+inline void storeu(D8 a, double* out) { _mm512_storeu_pd(out, a.v); }
+inline D8 operator+(D8 a, D8 b) { return {_mm512_add_pd(a.v, b.v)}; }
+inline D8 operator-(D8 a, D8 b) { return {_mm512_sub_pd(a.v, b.v)}; }
+inline D8 operator*(D8 a, D8 b) { return {_mm512_mul_pd(a.v, b.v)}; }
+inline D8 operator/(D8 a, D8 b) { return {_mm512_div_pd(a.v, b.v)}; }
+inline D8 vsqrt(D8 a) { return {_mm512_sqrt_pd(a.v)}; }
+inline D8 vmax(D8 a, D8 b) { return {_mm512_max_pd(a.v, b.v)}; }
+inline D8 vabs(D8 a) { return fromBits(_mm512_andnot_si512(_mm512_set1_epi64(INT64_MIN), bitsOf(a))); }
+inline D8 gt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GT_OQ)); }
+inline D8 lt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_LT_OQ)); }
+inline D8 ge(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GE_OQ)); }
+inline D8 eq(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_EQ_OQ)); }
+inline D8 notLe(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_NLE_UQ)); }
+inline D8 operator&(D8 a, D8 b) { return fromBits(_mm512_and_si512(bitsOf(a), bitsOf(b))); }
+inline D8 operator|(D8 a, D8 b) { return fromBits(_mm512_or_si512(bitsOf(a), bitsOf(b))); }
+inline D8 operator~(D8 m) { return fromBits(_mm512_xor_si512(bitsOf(m), _mm512_set1_epi64(-1))); }
+inline D8 select(D8 m, D8 a, D8 b) { return {_mm512_mask_blend_pd(maskBits(m), b.v, a.v)}; }
+inline D8 flipSign(D8 a, D8 s) {
+  return fromBits(_mm512_xor_si512(bitsOf(a), _mm512_and_si512(bitsOf(s), _mm512_set1_epi64(INT64_MIN))));
+}
+inline int bits(D8 m) { return maskBits(m); }
+/// The 4-lane halves of a pack and back.
+inline lanes4::D4 lo(D8 a) { return {_mm512_castpd512_pd256(a.v)}; }
+inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
+inline D8 join(lanes4::D4 l, lanes4::D4 h) { return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)}; }
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
+  lanes4::D4 xl, yl, zl, wl, xh, yh, zh, wh;
+  lanes4::loadPoints(pos, idx, xl, yl, zl, wl);
+  lanes4::loadPoints(pos, idx + 4, xh, yh, zh, wh);
+  x = join(xl, xh);
+  y = join(yl, yh);
+  z = join(zl, zh);
+  w = join(wl, wh);
+}
+inline void toQ(D8 x, D8 y, D8 z, Q* out) {
+  lanes4::toQ(lo(x), lo(y), lo(z), out);
+  lanes4::toQ(hi(x), hi(y), hi(z), out + 4);
+}
+inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
+  lanes4::D4 xl, yl, zl, xh, yh, zh;
+  lanes4::fromQ(in, xl, yl, zl);
+  lanes4::fromQ(in + 4, xh, yh, zh);
+  x = join(xl, xh);
+  y = join(yl, yh);
+  z = join(zl, zh);
+}
+}  // namespace lanes16
+
+namespace lanes32 {
+// Sixteen rows as two independent 8-lane packs in lockstep (as lanes8 over lanes4).
+using lanes16::D8;
+struct D16 {
+  static constexpr int lanes = 16;
+  D8 lo, hi;
+};
+inline D16 splat(double a) { return {lanes16::splat(a), lanes16::splat(a)}; }
+inline D16 loadu(const double* p) { return {lanes16::loadu(p), lanes16::loadu(p + 8)}; }
+inline void storeu(D16 a, double* out) {
+  lanes16::storeu(a.lo, out);
+  lanes16::storeu(a.hi, out + 8);
+}
+#define MSK_D16_BINARY(op, f) \
+  inline D16 op(D16 a, D16 b) { return {lanes16::f(a.lo, b.lo), lanes16::f(a.hi, b.hi)}; }
+inline D16 operator+(D16 a, D16 b) { return {a.lo + b.lo, a.hi + b.hi}; }
+inline D16 operator-(D16 a, D16 b) { return {a.lo - b.lo, a.hi - b.hi}; }
+inline D16 operator*(D16 a, D16 b) { return {a.lo * b.lo, a.hi * b.hi}; }
+inline D16 operator/(D16 a, D16 b) { return {a.lo / b.lo, a.hi / b.hi}; }
+inline D16 operator&(D16 a, D16 b) { return {a.lo & b.lo, a.hi & b.hi}; }
+inline D16 operator|(D16 a, D16 b) { return {a.lo | b.lo, a.hi | b.hi}; }
+inline D16 operator~(D16 m) { return {~m.lo, ~m.hi}; }
+MSK_D16_BINARY(vmax, vmax)
+MSK_D16_BINARY(gt, gt)
+MSK_D16_BINARY(lt, lt)
+MSK_D16_BINARY(ge, ge)
+MSK_D16_BINARY(eq, eq)
+MSK_D16_BINARY(notLe, notLe)
+MSK_D16_BINARY(flipSign, flipSign)
+#undef MSK_D16_BINARY
+inline D16 vsqrt(D16 a) { return {lanes16::vsqrt(a.lo), lanes16::vsqrt(a.hi)}; }
+inline D16 vabs(D16 a) { return {lanes16::vabs(a.lo), lanes16::vabs(a.hi)}; }
+inline D16 select(D16 m, D16 a, D16 b) { return {lanes16::select(m.lo, a.lo, b.lo), lanes16::select(m.hi, a.hi, b.hi)}; }
+inline int bits(D16 m) { return lanes16::bits(m.lo) | (lanes16::bits(m.hi) << 8); }
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+inline void loadPoints(const double* pos, const int* idx, D16& x, D16& y, D16& z, D16& w) {
+  lanes16::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
+  lanes16::loadPoints(pos, idx + 8, x.hi, y.hi, z.hi, w.hi);
+}
+inline void toQ(D16 x, D16 y, D16 z, Q* out) {
+  lanes16::toQ(x.lo, y.lo, z.lo, out);
+  lanes16::toQ(x.hi, y.hi, z.hi, out + 8);
+}
+inline void fromQ(const Q* in, D16& x, D16& y, D16& z) {
+  lanes16::fromQ(in, x.lo, y.lo, z.lo);
+  lanes16::fromQ(in + 8, x.hi, y.hi, z.hi);
+}
+using Pack = D16;
+#include "simplex_batch_kernel.inc"
+}  // namespace lanes32
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC diagnostic pop
+#pragma GCC pop_options
+#endif
+
 /// Whether this processor (and its operating system) runs AVX2.
 bool avxAvailable() {
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx2");
 }
+
+/// Whether this processor (and its operating system) runs AVX-512 F, DQ and VL.
+bool avx512Available() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+         __builtin_cpu_supports("avx512vl");
+}
 #else
 bool avxAvailable() { return false; }
+bool avx512Available() { return false; }
 #endif
 
 }  // namespace
@@ -458,10 +642,16 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
       }
   }
   kept_.assign(un, 0);
-  wide_ = avxAvailable();
+  useLanes(BatchLanes::Avx512);
 }
 
-void SimplexInternalBatch::useWideLanes(bool on) { wide_ = on && avxAvailable(); }
+void SimplexInternalBatch::useWideLanes(bool on) { useLanes(on ? BatchLanes::Avx512 : BatchLanes::Sse2); }
+
+void SimplexInternalBatch::useLanes(BatchLanes widest) {
+  lanes_ = BatchLanes::Sse2;
+  if (widest != BatchLanes::Sse2 && avxAvailable()) lanes_ = BatchLanes::Avx2;
+  if (widest == BatchLanes::Avx512 && avx512Available()) lanes_ = BatchLanes::Avx512;
+}
 
 void SimplexInternalBatch::checkSizes(const Points& p, const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size() && w.size() == p.rows(),
@@ -489,7 +679,11 @@ void SimplexInternalBatch::loadRange(const Points& p, const Eigen::VectorXd& w, 
   const double* z = y + p.rows();
   const double* wv = w.data() + first_;
   double* q = aligned(pos_);
-  for (int v = begin; v < end; ++v) {
+  int v = begin;
+#if MSK_BATCH_AVX
+  if (lanes_ != BatchLanes::Sse2) v = lanes4::packParticles(x, y, z, wv, q, begin, end);
+#endif
+  for (; v < end; ++v) {
     double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
     at[0] = x[v];
     at[1] = y[v];
@@ -505,7 +699,11 @@ void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
   double* y = x + p.rows();
   double* z = y + p.rows();
   const double* q = aligned(pos_);
-  for (int v = begin; v < end; ++v) {
+  int v = begin;
+#if MSK_BATCH_AVX
+  if (lanes_ != BatchLanes::Sse2) v = lanes4::unpackParticles(q, x, y, z, begin, end);
+#endif
+  for (; v < end; ++v) {
     const double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
     x[v] = at[0];
     y[v] = at[1];
@@ -526,7 +724,8 @@ int SimplexInternalBatch::projectRange(int begin, int end) {
   checkRange(begin, end);
   const BatchArrays a = arraysOf(aligned(pos_), order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
 #if MSK_BATCH_AVX
-  if (wide_) return lanes8::projectRows(a, gamma_, begin, end);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::projectRows(a, gamma_, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::projectRows(a, gamma_, begin, end);
 #endif
   return lanes2::projectRows(a, gamma_, begin, end);
 }
@@ -546,7 +745,8 @@ int SimplexInternalBatch::computeRange(int begin, int end) {
   double* c = c_.data();
   const JacobiOut o{aligned(d_), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
 #if MSK_BATCH_AVX
-  if (wide_) return lanes8::computeRows(a, gamma_, begin, end, o);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::computeRows(a, gamma_, begin, end, o);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::computeRows(a, gamma_, begin, end, o);
 #endif
   return lanes2::computeRows(a, gamma_, begin, end, o);
 }
@@ -605,7 +805,9 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
-    v = wide_ ? lanes8::applyParticles(j, x, y, z, begin, end) : lanes2::applyParticles(j, x, y, z, begin, end);
+    v = lanes_ == BatchLanes::Avx512 ? lanes32::applyParticles(j, x, y, z, begin, end)
+        : lanes_ == BatchLanes::Avx2 ? lanes8::applyParticles(j, x, y, z, begin, end)
+                                     : lanes2::applyParticles(j, x, y, z, begin, end);
 #else
     v = lanes2::applyParticles(j, x, y, z, begin, end);
 #endif

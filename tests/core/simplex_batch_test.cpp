@@ -18,6 +18,9 @@ namespace {
 
 using msk::Points;
 
+/// Every instruction set of the sweeps (each falls back to the widest narrower one the processor has).
+constexpr msk::BatchLanes kAllLanes[] = {msk::BatchLanes::Sse2, msk::BatchLanes::Avx2, msk::BatchLanes::Avx512};
+
 /// A perturbed simplex sphere (radius 50 mm) stacked after `offset` unconstrained particles, with random inverse masses
 /// spread over `massDecades` decades around 1, a fixed neighbourhood (vertex 7 and its neighbours), a few other fixed
 /// vertices, and vertex 100's first two neighbours made coincident (a degenerate neighbourhood).
@@ -110,13 +113,13 @@ TEST_P(SimplexBatchAgreement, ColouredSweepsMatchTheSolver) {
   const Case c = GetParam();
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 11);
   const Points expected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 3, c.gamma, 1.0);
-  for (bool wide : {false, true}) {  // two lanes (SSE2) and eight (AVX2, where the processor has it)
+  for (msk::BatchLanes lanes : kAllLanes) {  // 2 rows at a time (SSE2), 8 (AVX2), 16 (AVX-512) where available
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) batch.colouredSweep(p, pr.w);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
     EXPECT_TRUE(p.topRows(pr.offset) == pr.p0.topRows(pr.offset));  // particles outside the set untouched
   }
 }
@@ -126,13 +129,13 @@ TEST_P(SimplexBatchAgreement, JacobiSweepsMatchTheSolver) {
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 12);
   const double omega = 1.5;
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 3, c.gamma, omega);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) batch.jacobiSweep(p, pr.w, omega);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
@@ -141,13 +144,13 @@ TEST_P(SimplexBatchAgreement, JacobiWithoutSkipsOrFixedParticlesMatchesTheSolver
   const Case c = GetParam();
   const Problem pr = makeProblem(3, std::min(c.perturbation, 0.5), c.massDecades, 5, 15, false);
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 3, c.gamma, 1.5);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) EXPECT_EQ(batch.jacobiSweep(p, pr.w, 1.5), 0);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
@@ -156,10 +159,10 @@ TEST_P(SimplexBatchAgreement, SkipsTheRowsThePerRowPathSkips) {
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 13);
   const int expected = rowPathSkips(pr, c.gamma);
   EXPECT_GE(expected, 2);  // the fixed neighbourhood and the degenerate one at least
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     batch.loadRange(pr.p0, pr.w, 0, batch.size());
     EXPECT_EQ(batch.computeRange(0, batch.size()), expected);
     Points p = pr.p0;
@@ -174,22 +177,22 @@ INSTANTIATE_TEST_SUITE_P(Spheres, SimplexBatchAgreement,
                                            Case{2.0, 1.0, 1.0}));  // neighbourhoods folded over
 
 TEST(SimplexBatch, SmallMeshesWithPartialPacksMatchTheSolver) {
-  // 20 vertices: every sweep ends on a partial pack (8 or 2 rows at a time), in the rows and in the particles.
+  // 20 vertices: every sweep ends on a partial pack (16, 8 or 2 rows at a time), in the rows and in the particles.
   for (int offset : {0, 3}) {
     const Problem pr = makeProblem(0, 0.3, 1.0, offset, 16, false);
     const Points coloured = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
     const Points jacobi = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.3);
-    for (bool wide : {false, true}) {
+    for (msk::BatchLanes lanes : kAllLanes) {
       msk::SimplexInternalBatch batch(pr.reference, 0.9);
       batch.setFirstParticle(offset);
-      batch.useWideLanes(wide);
+      batch.useLanes(lanes);
       Points p = pr.p0, q = pr.p0;
       for (int it = 0; it < 2; ++it) {
         batch.colouredSweep(p, pr.w);
         batch.jacobiSweep(q, pr.w, 1.3);
       }
-      EXPECT_LT(relativeDifference(p, coloured, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
-      EXPECT_LT(relativeDifference(q, jacobi, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+      EXPECT_LT(relativeDifference(p, coloured, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
+      EXPECT_LT(relativeDifference(q, jacobi, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
     }
   }
 }
@@ -200,41 +203,44 @@ TEST(SimplexBatch, IrregularNeighbourTablesTakeTheGeneralJacobiPathAndMatchTheSo
   pr.reference.neighbors(0, 2) = pr.reference.vertexCount() / 2;
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.5);
   const Points colouredExpected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, 0.9);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0, q = pr.p0;
     for (int it = 0; it < 2; ++it) {
       batch.jacobiSweep(p, pr.w, 1.5);
       batch.colouredSweep(q, pr.w);
     }
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
-    EXPECT_LT(relativeDifference(q, colouredExpected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
+    EXPECT_LT(relativeDifference(q, colouredExpected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
-TEST(SimplexBatch, BothLaneWidthsGiveBitwiseTheSameSweeps) {
+TEST(SimplexBatch, EveryLaneWidthGivesBitwiseTheSameSweeps) {
+  // SSE2 (2 rows at a time) against AVX2 (8) and AVX-512 (16), where the processor has them (else the same path again).
   const Problem pr = makeProblem(4, 0.8, 2.0, 2, 17);
-  for (bool jacobi : {false, true}) {
-    msk::SimplexInternalBatch two(pr.reference, 0.8), wide(pr.reference, 0.8);
-    two.setFirstParticle(pr.offset);
-    wide.setFirstParticle(pr.offset);
-    two.useWideLanes(false);
-    wide.useWideLanes(true);  // the SSE2 path again where the processor lacks AVX2
-    Points a = pr.p0, b = pr.p0;
-    for (int it = 0; it < 10; ++it) {
-      if (jacobi) {
-        two.jacobiSweep(a, pr.w, 1.4);
-        wide.jacobiSweep(b, pr.w, 1.4);
-      } else {
-        two.colouredSweep(a, pr.w);
-        wide.colouredSweep(b, pr.w);
+  for (bool jacobi : {false, true})
+    for (msk::BatchLanes lanes : {msk::BatchLanes::Avx2, msk::BatchLanes::Avx512}) {
+      msk::SimplexInternalBatch two(pr.reference, 0.8), wide(pr.reference, 0.8);
+      two.setFirstParticle(pr.offset);
+      wide.setFirstParticle(pr.offset);
+      two.useLanes(msk::BatchLanes::Sse2);
+      wide.useLanes(lanes);
+      Points a = pr.p0, b = pr.p0;
+      for (int it = 0; it < 10; ++it) {
+        if (jacobi) {
+          two.jacobiSweep(a, pr.w, 1.4);
+          wide.jacobiSweep(b, pr.w, 1.4);
+        } else {
+          two.colouredSweep(a, pr.w);
+          wide.colouredSweep(b, pr.w);
+        }
       }
+      EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())), 0)
+          << (jacobi ? "jacobi" : "coloured") << " on lanes " << static_cast<int>(wide.lanes())
+          << ", largest difference " << (a - b).cwiseAbs().maxCoeff();
     }
-    EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())), 0)
-        << (jacobi ? "jacobi" : "coloured") << ", largest difference " << (a - b).cwiseAbs().maxCoeff();
-  }
 }
 
 TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {

@@ -1,9 +1,9 @@
 #pragma once
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
-/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, eight rows at a time (two 4-lane packs)
-/// where the processor has AVX2 (chosen at run time; the build flags stay baseline), else two (SSE2 doubles, or plain
-/// scalars off x86). The sweeps read and write a packed working copy of the set's particles (x, y, z, w: 32 bytes per
+/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, sixteen rows at a time (two 8-lane packs)
+/// where the processor has AVX-512, eight (two 4-lane packs) where it has AVX2 (chosen at run time; the build flags
+/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps read and write a packed working copy of the set's particles (x, y, z, w: 32 bytes per
 /// particle, one load per neighbour instead of four gathers), filled by loadRange() and written back by storeRange().
 /// They give the corrections of the Solver's per-row path (solver.h: ConstraintRow of SimplexInternalConstraints,
 /// PBD step Δλ = −γ C / W, same skip rules) up to rounding.
@@ -26,6 +26,11 @@
 #include "msk/core/simplex_mesh.h"
 
 namespace msk {
+
+/// Instruction set of the batch sweeps: SSE2 (two rows at a time), AVX2 (eight, as two 4-lane packs) or AVX-512 F/DQ/VL
+/// (sixteen, as two 8-lane packs, 32 registers). All run the same operations lane by lane (no fused multiply-add), so
+/// their results are bitwise the same.
+enum class BatchLanes { Sse2, Avx2, Avx512 };
 
 /// 2-simplex internal constraints (DESIGN-NOTES §2, method 2; shape memory P̃ = Σ ε̃i Pi + h̃ r⊥ n) as a batch: one row
 /// per vertex, the colouring the Solver computes for the same set; lengths in mm, inverse masses w ≥ 0.
@@ -51,11 +56,14 @@ class SimplexInternalBatch {
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
   /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
-  /// The AVX2 path (8 rows at a time) where the processor has it (the default), or the SSE2 one (2 rows) with `on` =
-  /// false. Both run the same operations lane by lane, so their results are bitwise the same.
+  /// The widest instruction set the processor has (the default), or SSE2 (2 rows at a time) with `on` = false.
   void useWideLanes(bool on);
-  /// Whether the sweeps take the AVX2 path.
-  bool wideLanes() const { return wide_; }
+  /// Whether the sweeps take a path wider than SSE2.
+  bool wideLanes() const { return lanes_ != BatchLanes::Sse2; }
+  /// The widest instruction set the processor has, up to `widest` (SSE2 always runs).
+  void useLanes(BatchLanes widest);
+  /// The instruction set the sweeps take.
+  BatchLanes lanes() const { return lanes_; }
   /// Vertex (local index) at position i of the colour order.
   int colourOrder(int i) const { return order_[static_cast<size_t>(i)]; }
 
@@ -96,7 +104,7 @@ class SimplexInternalBatch {
   void checkRange(int begin, int end) const;
   /// applyRange() with every sum times `post`.
   void applyScaled(Points& p, int begin, int end, double post) const;
-  bool wide_ = false;
+  BatchLanes lanes_ = BatchLanes::Sse2;
   int first_ = 0;
   double gamma_;
   std::vector<int> colourStart_;            ///< #colours + 1 offsets into order_
