@@ -829,13 +829,21 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
 
 void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { applyScaled(p, begin, end, 1.0); }
 
+bool SimplexInternalBatch::equalShares(const Eigen::VectorXd& w) const {
+  MSK_ASSERT(first_ >= 0 && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
+  return uniform4_ && (w.segment(first_, size()).array() > 0).all();
+}
+
+void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, int end) const {
+  applyScaled(p, begin, end, omega / 4);
+}
+
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   loadRange(p, w, 0, size());
   const int skipped = computeRange(0, size());
-  const auto free = w.segment(first_, size()).array();
-  if (skipped == 0 && uniform4_ && (free > 0).all()) {
+  if (skipped == 0 && equalShares(w)) {
     // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
-    applyScaled(p, 0, size(), omega / 4);
+    applyEqualShares(p, omega, 0, size());
   } else {
     ownCounts_.setZero(w.size());
     addCounts(w, ownCounts_);

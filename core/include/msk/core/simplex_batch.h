@@ -16,7 +16,8 @@
 ///   Jacobi:    b.loadRange(p, w, 0, size()), b.computeRange(begin, end) over [0, size()), then b.addCounts(w, counts)
 ///              (adding to the other sets' counts), then once every set is counted b.scaleRange(counts, omega, begin,
 ///              end) and b.applyRange(p, begin, end) over [0, size()); every step but addCounts() may be split over
-///              threads.
+///              threads. A set counted alone with no row skipped and b.equalShares(w) may instead call
+///              b.applyEqualShares(p, omega, begin, end) after computeRange() (every share ω/4).
 #include <cstdint>
 #include <vector>
 
@@ -93,8 +94,14 @@ class SimplexInternalBatch {
   /// Jacobi, step 4, particles (local indices) [begin, end): each adds the scaled corrections of the rows touching it,
   /// gathered (no scatter), so disjoint ranges may run at the same time.
   void applyRange(Points& p, int begin, int end) const;
-  /// One Jacobi iteration of this set alone on `p` (load, compute, counts from its own rows, scale, apply),
-  /// relaxation ω; returns the rows skipped.
+  /// Whether steps 2 and 3 may be skipped when this set alone is counted and computeRange() skipped no row: every
+  /// particle of the set sits in exactly 4 rows (a closed 2-simplex mesh) and is free (w > 0), so every share is ω/4.
+  bool equalShares(const Eigen::VectorXd& w) const;
+  /// Jacobi, step 4 with equal shares (equalShares()), particles [begin, end): each adds ω/4 times the unscaled
+  /// corrections of its 4 rows. Disjoint ranges may run at the same time.
+  void applyEqualShares(Points& p, double omega, int begin, int end) const;
+  /// One Jacobi iteration of this set alone on `p` (load, compute, counts from its own rows, scale, apply; or the
+  /// equal shares when they hold), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
  private:
