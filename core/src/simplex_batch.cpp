@@ -44,19 +44,19 @@ struct BatchArrays {
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction: d (row r's x, y, z, 0 at 4r, 32-byte aligned) and the
-/// coefficients cj (inverse masses included).
+/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8r (64-byte aligned): d (x, y, z,
+/// 0) and the coefficients c0 .. c3 (inverse masses included).
 struct JacobiOut {
-  double *d, *c0, *c1, *c2, *c3;
+  double* rec;
   std::uint8_t* kept;
 };
 
-/// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) name a row touching it (`row`)
-/// and the place of its coefficient in `c` (slot·n + row).
+/// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) give the place `flat` of the
+/// coefficient of a row touching it in the records (8·row + 4 + slot; the row's d at flat & ~7).
 struct JacobiView {
   std::ptrdiff_t n;
-  const int *flat, *row;
-  const double *c, *d;
+  const int* flat;
+  const double* rec;
   double post;  ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
 };
 
@@ -164,12 +164,13 @@ inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D
   z.v = _mm_unpacklo_pd(c, d);
   w.v = _mm_unpackhi_pd(c, d);
 }
-/// out[k] = (x, y, z, 0) of lane k.
-inline void toQ(D2 x, D2 y, D2 z, Q2* out) {
-  const __m128d zero = _mm_setzero_pd();
-  out[0] = {_mm_unpacklo_pd(x.v, y.v), _mm_unpacklo_pd(z.v, zero)};
-  out[1] = {_mm_unpackhi_pd(x.v, y.v), _mm_unpackhi_pd(z.v, zero)};
+/// out[k] = (a, b, c, d) of lane k.
+inline void toQ4(D2 a, D2 b, D2 c, D2 d, Q2* out) {
+  out[0] = {_mm_unpacklo_pd(a.v, b.v), _mm_unpacklo_pd(c.v, d.v)};
+  out[1] = {_mm_unpackhi_pd(a.v, b.v), _mm_unpackhi_pd(c.v, d.v)};
 }
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) { toQ4(x, y, z, D2{_mm_setzero_pd()}, out); }
 /// Lane k of x, y, z: in[k]'s.
 inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
   x.v = _mm_unpacklo_pd(in[0].xy, in[1].xy);
@@ -197,9 +198,10 @@ inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D
     w.v[k] = p[3];
   }
 }
-inline void toQ(D2 x, D2 y, D2 z, Q2* out) {
-  for (int k = 0; k < 2; ++k) out[k] = {{x.v[k], y.v[k], z.v[k], 0.0}};
+inline void toQ4(D2 a, D2 b, D2 c, D2 d, Q2* out) {
+  for (int k = 0; k < 2; ++k) out[k] = {{a.v[k], b.v[k], c.v[k], d.v[k]}};
 }
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) { toQ4(x, y, z, splat(0.0), out); }
 inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
   for (int k = 0; k < 2; ++k) {
     x.v[k] = in[k].v[0];
@@ -271,16 +273,17 @@ inline void loadPoints(const double* pos, const int* idx, D4& x, D4& y, D4& z, D
   z.v = _mm256_unpacklo_pd(c, d);
   w.v = _mm256_unpackhi_pd(c, d);
 }
-/// out[k] = (x, y, z, 0) of lane k.
-inline void toQ(D4 x, D4 y, D4 z, Q* out) {
-  const __m256d zero = _mm256_setzero_pd();
-  const __m256d t0 = _mm256_unpacklo_pd(x.v, y.v), t1 = _mm256_unpackhi_pd(x.v, y.v);  // x0 y0 x2 y2, x1 y1 x3 y3
-  const __m256d t2 = _mm256_unpacklo_pd(z.v, zero), t3 = _mm256_unpackhi_pd(z.v, zero);  // z0 0 z2 0, z1 0 z3 0
+/// out[k] = (a, b, c, d) of lane k.
+inline void toQ4(D4 a, D4 b, D4 c, D4 d, Q* out) {
+  const __m256d t0 = _mm256_unpacklo_pd(a.v, b.v), t1 = _mm256_unpackhi_pd(a.v, b.v);  // a0 b0 a2 b2, a1 b1 a3 b3
+  const __m256d t2 = _mm256_unpacklo_pd(c.v, d.v), t3 = _mm256_unpackhi_pd(c.v, d.v);  // c0 d0 c2 d2, c1 d1 c3 d3
   out[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
   out[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
   out[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
   out[3] = _mm256_permute2f128_pd(t1, t3, 0x31);
 }
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D4 x, D4 y, D4 z, Q* out) { toQ4(x, y, z, D4{_mm256_setzero_pd()}, out); }
 /// Lane k of x, y, z: in[k]'s.
 inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
   const __m256d a = _mm256_permute2f128_pd(in[0], in[2], 0x20), b = _mm256_permute2f128_pd(in[1], in[3], 0x20);
@@ -375,6 +378,10 @@ inline void toQ(D8 x, D8 y, D8 z, Q* out) {
   lanes4::toQ(x.lo, y.lo, z.lo, out);
   lanes4::toQ(x.hi, y.hi, z.hi, out + 4);
 }
+inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
+  lanes4::toQ4(a.lo, b.lo, c.lo, d.lo, out);
+  lanes4::toQ4(a.hi, b.hi, c.hi, d.hi, out + 4);
+}
 inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
   lanes4::fromQ(in, x.lo, y.lo, z.lo);
   lanes4::fromQ(in + 4, x.hi, y.hi, z.hi);
@@ -389,7 +396,7 @@ using Pack = D8;
 #pragma GCC pop_options
 #endif
 
-// ------------------------------------------------------------------------------------------------ eight lanes (AVX-512)
+// ---------------------------------------------------------------------------------------- eight lanes (AVX-512)
 
 // Eight rows in one 512-bit pack, 32 vector registers (AVX-512 F, DQ, VL), chosen at run time like AVX2. Masks are
 // kept as all-ones / all-zeros lanes, as on the narrower paths, and the same operations run lane by lane: no fused
@@ -441,7 +448,9 @@ inline int bits(D8 m) { return maskBits(m); }
 /// The 4-lane halves of a pack and back.
 inline lanes4::D4 lo(D8 a) { return {_mm512_castpd512_pd256(a.v)}; }
 inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
-inline D8 join(lanes4::D4 l, lanes4::D4 h) { return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)}; }
+inline D8 join(lanes4::D4 l, lanes4::D4 h) {
+  return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)};
+}
 using lanes4::Q;
 using lanes4::keepW;
 using lanes4::loadQ;
@@ -459,6 +468,10 @@ inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D
 inline void toQ(D8 x, D8 y, D8 z, Q* out) {
   lanes4::toQ(lo(x), lo(y), lo(z), out);
   lanes4::toQ(hi(x), hi(y), hi(z), out + 4);
+}
+inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
+  lanes4::toQ4(lo(a), lo(b), lo(c), lo(d), out);
+  lanes4::toQ4(hi(a), hi(b), hi(c), hi(d), out + 4);
 }
 inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
   lanes4::D4 xl, yl, zl, xh, yh, zh;
@@ -502,7 +515,9 @@ MSK_D16_BINARY(flipSign, flipSign)
 #undef MSK_D16_BINARY
 inline D16 vsqrt(D16 a) { return {lanes16::vsqrt(a.lo), lanes16::vsqrt(a.hi)}; }
 inline D16 vabs(D16 a) { return {lanes16::vabs(a.lo), lanes16::vabs(a.hi)}; }
-inline D16 select(D16 m, D16 a, D16 b) { return {lanes16::select(m.lo, a.lo, b.lo), lanes16::select(m.hi, a.hi, b.hi)}; }
+inline D16 select(D16 m, D16 a, D16 b) {
+  return {lanes16::select(m.lo, a.lo, b.lo), lanes16::select(m.hi, a.hi, b.hi)};
+}
 inline int bits(D16 m) { return lanes16::bits(m.lo) | (lanes16::bits(m.hi) << 8); }
 using lanes4::Q;
 using lanes4::keepW;
@@ -516,6 +531,10 @@ inline void loadPoints(const double* pos, const int* idx, D16& x, D16& y, D16& z
 inline void toQ(D16 x, D16 y, D16 z, Q* out) {
   lanes16::toQ(x.lo, y.lo, z.lo, out);
   lanes16::toQ(x.hi, y.hi, z.hi, out + 8);
+}
+inline void toQ4(D16 a, D16 b, D16 c, D16 d, Q* out) {
+  lanes16::toQ4(a.lo, b.lo, c.lo, d.lo, out);
+  lanes16::toQ4(a.hi, b.hi, c.hi, d.hi, out + 8);
 }
 inline void fromQ(const Q* in, D16& x, D16& y, D16& z) {
   lanes16::fromQ(in, x.lo, y.lo, z.lo);
@@ -611,8 +630,7 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     chr_[i] = hr_[v];
   }
   pos_.assign(4 * un + 8, 0.0);
-  d_.assign(4 * un + 8, 0.0);
-  c_.assign(4 * un, 0.0);
+  d_.assign(8 * un + 8, 0.0);
   // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
   revStart_.assign(un + 1, 0);
   for (int v = 0; v < n; ++v) {
@@ -627,19 +645,15 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     for (int slot = 0; slot < 4; ++slot) {
       const int j = slot == 0 ? v : nb(v, slot - 1);
       const size_t at = static_cast<size_t>(fill[static_cast<size_t>(j)]++);
-      revFlat_[at] = slot * n + v;
+      revFlat_[at] = 8 * v + 4 + slot;
       revRow_[at] = v;
     }
   uniform4_ = true;
   for (size_t v = 0; v < un; ++v) uniform4_ = uniform4_ && revStart_[v + 1] - revStart_[v] == 4;
   if (uniform4_) {  // entry-major copies: entry e of particles v .. v + 3 contiguous
     tFlat_.resize(4 * un);
-    tRow_.resize(4 * un);
     for (size_t v = 0; v < un; ++v)
-      for (size_t e = 0; e < 4; ++e) {
-        tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
-        tRow_[e * un + v] = revRow_[static_cast<size_t>(revStart_[v]) + e];
-      }
+      for (size_t e = 0; e < 4; ++e) tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
   }
   kept_.assign(un, 0);
   useLanes(BatchLanes::Avx512);
@@ -741,9 +755,7 @@ int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) {
 int SimplexInternalBatch::computeRange(int begin, int end) {
   checkRange(begin, end);
   const BatchArrays a = arraysOf(aligned(pos_), order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
-  const size_t n = order_.size();
-  double* c = c_.data();
-  const JacobiOut o{aligned(d_), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
+  const JacobiOut o{aligned(d_), kept_.data()};
 #if MSK_BATCH_AVX
   if (lanes_ == BatchLanes::Avx512) return lanes32::computeRows(a, gamma_, begin, end, o);
   if (lanes_ == BatchLanes::Avx2) return lanes8::computeRows(a, gamma_, begin, end, o);
@@ -759,10 +771,10 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
   const std::uint8_t* kept = kept_.data();
   const int* row = revRow_.data();
   if (uniform4_) {
-    const int* t = tRow_.data();
+    const int* t = tFlat_.data();  // row = flat / 8
     const int n = size();
     for (int v = 0; v < n; ++v) {
-      const int k = kept[t[v]] + kept[t[n + v]] + kept[t[2 * n + v]] + kept[t[3 * n + v]];
+      const int k = kept[t[v] >> 3] + kept[t[n + v] >> 3] + kept[t[2 * n + v] >> 3] + kept[t[3 * n + v] >> 3];
       cnt[v] += wv[v] > 0 ? k : 0;
     }
     return;
@@ -788,9 +800,9 @@ void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omeg
     const size_t r = static_cast<size_t>(v);
     const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
     const double scale = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
-    d[4 * r] *= scale;
-    d[4 * r + 1] *= scale;
-    d[4 * r + 2] *= scale;
+    d[8 * r] *= scale;
+    d[8 * r + 1] *= scale;
+    d[8 * r + 2] *= scale;
   }
 }
 
@@ -801,7 +813,7 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   double* y = x + p.rows();
   double* z = y + p.rows();
   const double* d = aligned(d_);
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), d, post};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
@@ -816,10 +828,10 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
     double ax = 0, ay = 0, az = 0;
     for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e) {
       const size_t r = static_cast<size_t>(revRow_[static_cast<size_t>(e)]);
-      const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])];
-      ax += c * d[4 * r];
-      ay += c * d[4 * r + 1];
-      az += c * d[4 * r + 2];
+      const double c = d[revFlat_[static_cast<size_t>(e)]];
+      ax += c * d[8 * r];
+      ay += c * d[8 * r + 1];
+      az += c * d[8 * r + 2];
     }
     x[v] += post * ax;
     y[v] += post * ay;

@@ -3,8 +3,9 @@
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
 /// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, sixteen rows at a time (two 8-lane packs)
 /// where the processor has AVX-512, eight (two 4-lane packs) where it has AVX2 (chosen at run time; the build flags
-/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps read and write a packed working copy of the set's particles (x, y, z, w: 32 bytes per
-/// particle, one load per neighbour instead of four gathers), filled by loadRange() and written back by storeRange().
+/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps read and write a packed working copy
+/// of the set's particles (x, y, z, w: 32 bytes per particle, one load per neighbour instead of four gathers), filled
+/// by loadRange() and written back by storeRange().
 /// They give the corrections of the Solver's per-row path (solver.h: ConstraintRow of SimplexInternalConstraints,
 /// PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
@@ -126,13 +127,14 @@ class SimplexInternalBatch {
   static double* aligned(std::vector<double>& buffer);
   static const double* aligned(const std::vector<double>& buffer);
   std::vector<double> pos_;  ///< working copy: particle v's x, y, z, w at 4v .. 4v + 3 of aligned(pos_)
-  // Jacobi corrections of the last computeRange(): d = P̃ − P (times the row's ω / count after scaleRange()), row r's
-  // at 4r .. 4r + 2 of aligned(d_) (4r + 3 zero), and the coefficients cj, ΔPj = cj d, c_ holding slot j of row r at
-  // j·n + r.
-  std::vector<double> d_, c_;
-  // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_).
+  // Jacobi corrections of the last computeRange(), one 64-byte record (a cache line) per row r at 8r of aligned(d_):
+  // d = P̃ − P (times the row's ω / count after scaleRange()) at 8r .. 8r + 2 (8r + 3 zero), and the coefficients
+  // cj of its particles, ΔPj = cj d, at 8r + 4 + j.
+  std::vector<double> d_;
+  // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_:
+  // 8·row + 4 + slot, its record at revFlat_ & ~7).
   std::vector<int> revStart_, revRow_, revFlat_;
-  std::vector<int> tRow_, tFlat_;  ///< with uniform4_: the same, entry e of particle v at e·n + v
+  std::vector<int> tFlat_;  ///< with uniform4_: revFlat_ entry e of particle v at e·n + v
   bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
