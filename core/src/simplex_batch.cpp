@@ -21,6 +21,10 @@
 #define MSK_BATCH_AVX 0
 #endif
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 #include "msk/core/constraints.h"
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
@@ -567,6 +571,20 @@ bool avxAvailable() { return false; }
 bool avx512Available() { return false; }
 #endif
 
+/// Sets `buffer` to n zeros, asking the kernel (Linux) for 2 MB pages over it before the first touch where it is large:
+/// the sweeps' neighbour loads land on random pages, and 4 KB pages miss the TLB beyond a few megabytes.
+void zeroFilled(std::vector<double>& buffer, size_t n) {
+  buffer.clear();
+  buffer.shrink_to_fit();
+  buffer.reserve(n);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  const std::uintptr_t huge = std::uintptr_t(2) << 20, at = reinterpret_cast<std::uintptr_t>(buffer.data());
+  const std::uintptr_t lo = (at + huge - 1) & ~(huge - 1), hi = (at + n * sizeof(double)) & ~(huge - 1);
+  if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);  // advice only: failure is harmless
+#endif
+  buffer.assign(n, 0.0);
+}
+
 }  // namespace
 
 SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double gamma) : gamma_(gamma) {
@@ -629,8 +647,8 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     ceps2_[i] = eps2_[v];
     chr_[i] = hr_[v];
   }
-  pos_.assign(4 * un + 8, 0.0);
-  d_.assign(8 * un + 8, 0.0);
+  zeroFilled(pos_, 4 * un + 8);
+  zeroFilled(d_, 8 * un + 8);
   // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
   revStart_.assign(un + 1, 0);
   for (int v = 0; v < n; ++v) {
