@@ -868,6 +868,18 @@ void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, 
   applyScaled(p, begin, end, omega / 4);
 }
 
+void SimplexInternalBatch::applyEqualSharesPacked(double omega, int begin, int end) {
+  MSK_ASSERT(uniform4_, "simplex internal batch: equal shares need every particle in 4 rows");
+  checkRange(begin, end);
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), aligned(d_), omega / 4};
+  double* pos = aligned(pos_);
+#if MSK_BATCH_AVX
+  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, begin, end);
+#endif
+  lanes2::applyParticlesPacked(j, pos, begin, end);
+}
+
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   loadRange(p, w, 0, size());
   const int skipped = computeRange(0, size());

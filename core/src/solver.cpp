@@ -107,7 +107,7 @@ struct Solver::Impl {
   Points x, v, p, force, scratch;
   Eigen::VectorXd w, fallbackK;
   Eigen::VectorXi counts;
-  SimplexInternalBatch* resident = nullptr;  ///< batch whose packed copy is newer than p (coloured scheme)
+  SimplexInternalBatch* resident = nullptr;  ///< batch whose packed copy is newer than p
   int steps = 0, cgIterations = 0;
   double cgResidual = 0;
   std::map<std::string, double> seconds;
@@ -166,8 +166,8 @@ struct Solver::Impl {
     return internal ? internal->batch() : nullptr;
   }
 
-  /// Writes the packed copy of the batch swept last by colouredSweep() back into p (its positions are newer than p's
-  /// until then); every reader of p in the coloured scheme calls this first.
+  /// Writes the packed copy of the batch swept last (colouredSweep(), or Jacobi of a set alone with equal shares)
+  /// back into p (its positions are newer than p's until then); every other reader of p calls this first.
   void storeResident() {
     if (!resident) return;
     SimplexInternalBatch* b = resident;
@@ -229,10 +229,11 @@ struct Solver::Impl {
     const int n = static_cast<int>(p.rows());
     counts.setZero(n);
     SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
+    if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
-        pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
+        if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         std::atomic<int> skipped{0};
         pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
         // Counted alone with every row kept on a closed mesh of free particles: every share is ω/4 (no counts).
@@ -270,9 +271,11 @@ struct Solver::Impl {
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
-        if (b == equalShares) {
-          pool.run(b->size(), [&](int lo, int hi) { b->applyEqualShares(p, opts.omega, lo, hi); });
+        if (b == equalShares) {  // alone: into its packed copy, kept for the next iteration (storeResident())
+          pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
+          resident = b;
         } else {
+          storeResident();  // p current before the corrections are added to it
           pool.run(b->size(), [&](int lo, int hi) { b->scaleRange(counts, opts.omega, lo, hi); });
           pool.run(b->size(), [&](int lo, int hi) { b->applyRange(p, lo, hi); });
         }

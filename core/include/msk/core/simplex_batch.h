@@ -101,6 +101,9 @@ class SimplexInternalBatch {
   /// Jacobi, step 4 with equal shares (equalShares()), particles [begin, end): each adds ω/4 times the unscaled
   /// corrections of its 4 rows. Disjoint ranges may run at the same time.
   void applyEqualShares(Points& p, double omega, int begin, int end) const;
+  /// applyEqualShares() into the packed working copy instead of `p` (bitwise the same positions; storeRange() writes
+  /// them back), so that a set iterated alone needs no loadRange() between its iterations.
+  void applyEqualSharesPacked(double omega, int begin, int end);
   /// One Jacobi iteration of this set alone on `p` (load, compute, counts from its own rows, scale, apply; or the
   /// equal shares when they hold), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
