@@ -126,7 +126,8 @@ void BM_SimplexInternalKernelOnly(benchmark::State& state) {
 BENCHMARK(BM_SimplexInternalKernelOnly);
 
 // The 2-simplex internal set run by the solver of every position-based scheme (solver.h), one thread, 10 iterations per
-// step from a sphere scaled by 1.05: items = iterations × vertices per step (colouring and caches set up untimed).
+// step from a sphere scaled by 1.05: items = iterations × vertices per step (colouring and caches set up untimed). The
+// coloured and Jacobi schemes run the set's batch kernel (simplex_batch.h) on the widest instruction set available.
 void BM_SolverInternal(benchmark::State& state, msk::Scheme scheme) {
   const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();

@@ -126,7 +126,7 @@ class SimplexInternalBatch {
   // The same per-row data in colour order (position i: vertex order_[i]), read by the Gauss–Seidel sweeps.
   std::vector<int> cnb0_, cnb1_, cnb2_;
   std::vector<double> ceps0_, ceps1_, ceps2_, chr_;
-  /// First 64-byte aligned double of `buffer` (allocated 8 doubles long).
+  /// First 64-byte aligned double of `buffer` (allocated 8 doubles longer than its contents).
   static double* aligned(std::vector<double>& buffer);
   static const double* aligned(const std::vector<double>& buffer);
   std::vector<double> pos_;  ///< working copy: particle v's x, y, z, w at 4v .. 4v + 3 of aligned(pos_)
