@@ -126,7 +126,8 @@ void BM_SimplexInternalKernelOnly(benchmark::State& state) {
 BENCHMARK(BM_SimplexInternalKernelOnly);
 
 // The 2-simplex internal set run by the solver of every position-based scheme (solver.h), one thread, 10 iterations per
-// step from a sphere scaled by 1.05: items = iterations × vertices per step (colouring and caches set up untimed).
+// step from a sphere scaled by 1.05: items = iterations × vertices per step (colouring and caches set up untimed). The
+// coloured and Jacobi schemes run the set's batch kernel (simplex_batch.h) on the widest instruction set available.
 void BM_SolverInternal(benchmark::State& state, msk::Scheme scheme) {
   const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
@@ -151,19 +152,21 @@ BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
 BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
 
-// The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, eight rows at a time with AVX2
-// (chosen at run time) or two with SSE2 (`_sse2`), no virtual call. One thread; one sweep per iteration over every
+// The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, on a packed copy of the
+// particles, sixteen rows at a time with AVX-512 or eight with AVX2 (the widest the processor has, chosen at run time),
+// eight with AVX2 (`_avx2`) or two with SSE2 (`_sse2`), no virtual call. Every sweep includes filling the packed copy
+// from the solver's arrays and writing it back. One thread; one sweep per iteration over every
 // vertex of the perturbed sphere of BM_SimplexInternal (γ = 0.5, unit masses): a weighted-sum Jacobi iteration
 // (ω = 1.5: corrections from the same positions, then scaled and applied; jacobiSweep() with its every-row-kept
 // shortcut), the same through the four steps a multi-set solver calls (`jacobi_counted`: compute, count, scale,
 // apply), or a coloured Gauss–Seidel sweep. Items = projections; compare BM_SolverInternal/jacobi and /coloured, the
 // per-row path of the same schemes.
 enum class BatchMode { Jacobi, JacobiCounted, Coloured };
-void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
+void BM_BatchInternal(benchmark::State& state, BatchMode mode, msk::BatchLanes lanes) {
   const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::SimplexInternalBatch batch(s, 0.5);
-  batch.useWideLanes(wide);
+  batch.useLanes(lanes);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
   Eigen::VectorXi counts(n);
@@ -172,7 +175,8 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
     switch (mode) {
       case BatchMode::Jacobi: skipped = batch.jacobiSweep(p, w, 1.5); break;
       case BatchMode::JacobiCounted:
-        skipped = batch.computeRange(p, w, 0, n);
+        batch.loadRange(p, w, 0, n);
+        skipped = batch.computeRange(0, n);
         counts.setZero();
         batch.addCounts(w, counts);
         batch.scaleRange(counts, 1.5, 0, n);
@@ -185,18 +189,23 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, bool wide) {
   }
   state.counters["skipped"] = skipped;
   state.counters["colours"] = batch.colours();
-  state.counters["lanes"] = batch.wideLanes() ? 8 : 2;
+  const msk::BatchLanes used = batch.lanes();
+  state.counters["lanes"] = used == msk::BatchLanes::Avx512 ? 16 : used == msk::BatchLanes::Avx2 ? 8 : 2;
   finish(state, n, n);
 }
-BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, BatchMode::Jacobi, true)
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, BatchMode::Jacobi, msk::BatchLanes::Avx512)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
-BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_counted, BatchMode::JacobiCounted, true)
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_counted, BatchMode::JacobiCounted, msk::BatchLanes::Avx512)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
-BENCHMARK_CAPTURE(BM_BatchInternal, coloured, BatchMode::Coloured, true)
+BENCHMARK_CAPTURE(BM_BatchInternal, coloured, BatchMode::Coloured, msk::BatchLanes::Avx512)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
-BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_sse2, BatchMode::Jacobi, false)
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_avx2, BatchMode::Jacobi, msk::BatchLanes::Avx2)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
-BENCHMARK_CAPTURE(BM_BatchInternal, coloured_sse2, BatchMode::Coloured, false)
+BENCHMARK_CAPTURE(BM_BatchInternal, coloured_avx2, BatchMode::Coloured, msk::BatchLanes::Avx2)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_sse2, BatchMode::Jacobi, msk::BatchLanes::Sse2)
+    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+BENCHMARK_CAPTURE(BM_BatchInternal, coloured_sse2, BatchMode::Coloured, msk::BatchLanes::Sse2)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 
 // Image target constraints (one per vertex, weight 1).

@@ -11,7 +11,7 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-// A wide path with AVX2 (256-bit doubles, hardware gathers; eight rows per step as two 4-lane packs), compiled for that
+// A wide path with AVX2 (256-bit doubles; eight rows per step as two 4-lane packs), compiled for that
 // instruction set function by function and chosen at run time when the processor has it; the project's flags (no
 // -march) stay as they are.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__SSE2__)
@@ -19,6 +19,10 @@
 #include <immintrin.h>
 #else
 #define MSK_BATCH_AVX 0
+#endif
+
+#if defined(__linux__)
+#include <sys/mman.h>
 #endif
 
 #include "msk/core/constraints.h"
@@ -35,28 +39,28 @@ namespace {
 #define MSK_BATCH_INLINE inline
 #endif
 
-/// The arrays one sweep reads and writes: positions and inverse masses seen from the set's first particle (Points is
-/// column-major, so x, y and z are each contiguous), and the rows in the pass's order: vertex order (order unused) or
-/// colour order (order[i] the vertex of position i).
+/// The arrays one sweep reads and writes: the packed working copy (particle v's x, y, z, w at 4v, local indices,
+/// 32-byte aligned), and the rows in the pass's order: vertex order (order unused) or colour order (order[i] the
+/// vertex of position i).
 struct BatchArrays {
-  double *x, *y, *z;
-  const double* w;
+  double* pos;
   const int *order, *n0, *n1, *n2;
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction: d and the coefficients cj (inverse masses included).
+/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8r (64-byte aligned): d (x, y, z,
+/// 0) and the coefficients c0 .. c3 (inverse masses included).
 struct JacobiOut {
-  double *dx, *dy, *dz, *c0, *c1, *c2, *c3;
+  double* rec;
   std::uint8_t* kept;
 };
 
-/// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) name a row touching it (`row`)
-/// and the place of its coefficient in `c` (slot·n + row).
+/// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) give the place `flat` of the
+/// coefficient of a row touching it in the records (8·row + 4 + slot; the row's d at flat & ~7).
 struct JacobiView {
   std::ptrdiff_t n;
-  const int *flat, *row;
-  const double *c, *dx, *dy, *dz;
+  const int* flat;
+  const double* rec;
   double post;  ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
 };
 
@@ -139,26 +143,81 @@ inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { retu
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
 #endif
 
-/// Two indices (the 2-lane packs gather element by element).
-struct Idx2 {
-  int i[2];
-};
-inline Idx2 loadIdx(const int* p) { return {{p[0], p[1]}}; }
-inline Idx2 iota(int r) { return {{r, r + 1}}; }
-inline Idx2 gatherIdx(const int* base, Idx2 k) { return {{base[k.i[0]], base[k.i[1]]}}; }
-inline void storeIdx(Idx2 k, int* out) {
-  out[0] = k.i[0];
-  out[1] = k.i[1];
-}
+// One particle's packed x, y, z, w (Q) and the moves between packed particles and packs of 2 rows.
 #if defined(__SSE2__)
-inline D2 gather(const double* b, Idx2 k) { return {_mm_set_pd(b[k.i[1]], b[k.i[0]])}; }
+struct Q2 {
+  __m128d xy, zw;
+};
+inline Q2 loadQ(const double* p) { return {_mm_load_pd(p), _mm_load_pd(p + 2)}; }
+inline void storeQ(Q2 q, double* p) {
+  _mm_store_pd(p, q.xy);
+  _mm_store_pd(p + 2, q.zw);
+}
+inline Q2 splatQ(double a) { return {_mm_set1_pd(a), _mm_set1_pd(a)}; }
+inline Q2 operator+(Q2 a, Q2 b) { return {_mm_add_pd(a.xy, b.xy), _mm_add_pd(a.zw, b.zw)}; }
+inline Q2 operator*(Q2 a, Q2 b) { return {_mm_mul_pd(a.xy, b.xy), _mm_mul_pd(a.zw, b.zw)}; }
+/// x, y, z of `u`, w of `old`.
+inline Q2 keepW(Q2 u, Q2 old) { return {u.xy, _mm_move_sd(old.zw, u.zw)}; }
+/// The x, y, z, w packs of the particles idx[0], idx[1] of `pos`.
+inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D2& w) {
+  const double* p0 = pos + 4 * static_cast<std::ptrdiff_t>(idx[0]);
+  const double* p1 = pos + 4 * static_cast<std::ptrdiff_t>(idx[1]);
+  const __m128d a = _mm_load_pd(p0), b = _mm_load_pd(p1), c = _mm_load_pd(p0 + 2), d = _mm_load_pd(p1 + 2);
+  x.v = _mm_unpacklo_pd(a, b);
+  y.v = _mm_unpackhi_pd(a, b);
+  z.v = _mm_unpacklo_pd(c, d);
+  w.v = _mm_unpackhi_pd(c, d);
+}
+/// out[k] = (a, b, c, d) of lane k.
+inline void toQ4(D2 a, D2 b, D2 c, D2 d, Q2* out) {
+  out[0] = {_mm_unpacklo_pd(a.v, b.v), _mm_unpacklo_pd(c.v, d.v)};
+  out[1] = {_mm_unpackhi_pd(a.v, b.v), _mm_unpackhi_pd(c.v, d.v)};
+}
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) { toQ4(x, y, z, D2{_mm_setzero_pd()}, out); }
+/// Lane k of x, y, z: in[k]'s.
+inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
+  x.v = _mm_unpacklo_pd(in[0].xy, in[1].xy);
+  y.v = _mm_unpackhi_pd(in[0].xy, in[1].xy);
+  z.v = _mm_unpacklo_pd(in[0].zw, in[1].zw);
+}
 #else
-inline D2 gather(const double* b, Idx2 k) { return {{b[k.i[0]], b[k.i[1]]}}; }
+struct Q2 {
+  double v[4];
+};
+inline Q2 loadQ(const double* p) { return {{p[0], p[1], p[2], p[3]}}; }
+inline void storeQ(Q2 q, double* p) {
+  for (int i = 0; i < 4; ++i) p[i] = q.v[i];
+}
+inline Q2 splatQ(double a) { return {{a, a, a, a}}; }
+inline Q2 operator+(Q2 a, Q2 b) { return {{a.v[0] + b.v[0], a.v[1] + b.v[1], a.v[2] + b.v[2], a.v[3] + b.v[3]}}; }
+inline Q2 operator*(Q2 a, Q2 b) { return {{a.v[0] * b.v[0], a.v[1] * b.v[1], a.v[2] * b.v[2], a.v[3] * b.v[3]}}; }
+inline Q2 keepW(Q2 u, Q2 old) { return {{u.v[0], u.v[1], u.v[2], old.v[3]}}; }
+inline void loadPoints(const double* pos, const int* idx, D2& x, D2& y, D2& z, D2& w) {
+  for (int k = 0; k < 2; ++k) {
+    const double* p = pos + 4 * static_cast<std::ptrdiff_t>(idx[k]);
+    x.v[k] = p[0];
+    y.v[k] = p[1];
+    z.v[k] = p[2];
+    w.v[k] = p[3];
+  }
+}
+inline void toQ4(D2 a, D2 b, D2 c, D2 d, Q2* out) {
+  for (int k = 0; k < 2; ++k) out[k] = {{a.v[k], b.v[k], c.v[k], d.v[k]}};
+}
+inline void toQ(D2 x, D2 y, D2 z, Q2* out) { toQ4(x, y, z, splat(0.0), out); }
+inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
+  for (int k = 0; k < 2; ++k) {
+    x.v[k] = in[k].v[0];
+    y.v[k] = in[k].v[1];
+    z.v[k] = in[k].v[2];
+  }
+}
 #endif
 
 namespace lanes2 {
 using Pack = D2;
-using Idx = Idx2;
+using Q = Q2;
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes2
 
@@ -176,20 +235,6 @@ struct D4 {
   __m256d v;
 };
 inline D4 splat(double a) { return {_mm256_set1_pd(a)}; }
-/// Four indices in one register.
-struct Idx {
-  __m128i v;
-};
-inline Idx loadIdx(const int* p) { return {_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))}; }
-inline Idx iota(int r) { return {_mm_add_epi32(_mm_set1_epi32(r), _mm_setr_epi32(0, 1, 2, 3))}; }
-// The masked forms (all lanes on) say what the unmasked ones leave undefined, which GCC 12 warns about.
-inline Idx gatherIdx(const int* base, Idx k) {
-  return {_mm_mask_i32gather_epi32(_mm_setzero_si128(), base, k.v, _mm_set1_epi32(-1), 4)};
-}
-inline void storeIdx(Idx k, int* out) { _mm_storeu_si128(reinterpret_cast<__m128i*>(out), k.v); }
-inline D4 gather(const double* b, Idx k) {
-  return {_mm256_mask_i32gather_pd(_mm256_setzero_pd(), b, k.v, _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8)};
-}
 inline D4 loadu(const double* p) { return {_mm256_loadu_pd(p)}; }
 inline void storeu(D4 a, double* out) { _mm256_storeu_pd(out, a.v); }
 inline D4 operator+(D4 a, D4 b) { return {_mm256_add_pd(a.v, b.v)}; }
@@ -210,19 +255,91 @@ inline D4 operator~(D4 m) { return {_mm256_xor_pd(m.v, _mm256_castsi256_pd(_mm25
 inline D4 select(D4 m, D4 a, D4 b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
 inline D4 flipSign(D4 a, D4 s) { return {_mm256_xor_pd(a.v, _mm256_and_pd(s.v, _mm256_set1_pd(-0.0)))}; }
 inline int bits(D4 m) { return _mm256_movemask_pd(m.v); }
+/// One particle's packed x, y, z, w (+ and · are the compilers' own vector arithmetic on __m256d).
+using Q = __m256d;
+inline Q loadQ(const double* p) { return _mm256_load_pd(p); }
+inline void storeQ(Q q, double* p) { _mm256_store_pd(p, q); }
+inline Q splatQ(double a) { return _mm256_set1_pd(a); }
+/// x, y, z of `u`, w of `old`.
+inline Q keepW(Q u, Q old) { return _mm256_blend_pd(u, old, 0x8); }
+/// The x, y, z, w packs of the particles idx[0..3] of `pos` (four 32-byte rows transposed: loads of halves, unpacks).
+inline void loadPoints(const double* pos, const int* idx, D4& x, D4& y, D4& z, D4& w) {
+  const double* p0 = pos + 4 * static_cast<std::ptrdiff_t>(idx[0]);
+  const double* p1 = pos + 4 * static_cast<std::ptrdiff_t>(idx[1]);
+  const double* p2 = pos + 4 * static_cast<std::ptrdiff_t>(idx[2]);
+  const double* p3 = pos + 4 * static_cast<std::ptrdiff_t>(idx[3]);
+  const __m256d a = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0)), _mm_load_pd(p2), 1);  // x0 y0 x2 y2
+  const __m256d b = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1)), _mm_load_pd(p3), 1);  // x1 y1 x3 y3
+  const __m256d c = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0 + 2)), _mm_load_pd(p2 + 2), 1);
+  const __m256d d = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1 + 2)), _mm_load_pd(p3 + 2), 1);
+  x.v = _mm256_unpacklo_pd(a, b);
+  y.v = _mm256_unpackhi_pd(a, b);
+  z.v = _mm256_unpacklo_pd(c, d);
+  w.v = _mm256_unpackhi_pd(c, d);
+}
+/// out[k] = (a, b, c, d) of lane k.
+inline void toQ4(D4 a, D4 b, D4 c, D4 d, Q* out) {
+  const __m256d t0 = _mm256_unpacklo_pd(a.v, b.v), t1 = _mm256_unpackhi_pd(a.v, b.v);  // a0 b0 a2 b2, a1 b1 a3 b3
+  const __m256d t2 = _mm256_unpacklo_pd(c.v, d.v), t3 = _mm256_unpackhi_pd(c.v, d.v);  // c0 d0 c2 d2, c1 d1 c3 d3
+  out[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+  out[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+  out[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+  out[3] = _mm256_permute2f128_pd(t1, t3, 0x31);
+}
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D4 x, D4 y, D4 z, Q* out) { toQ4(x, y, z, D4{_mm256_setzero_pd()}, out); }
+/// Lane k of x, y, z: in[k]'s.
+inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
+  const __m256d a = _mm256_permute2f128_pd(in[0], in[2], 0x20), b = _mm256_permute2f128_pd(in[1], in[3], 0x20);
+  const __m256d c = _mm256_permute2f128_pd(in[0], in[2], 0x31), d = _mm256_permute2f128_pd(in[1], in[3], 0x31);
+  x.v = _mm256_unpacklo_pd(a, b);
+  y.v = _mm256_unpackhi_pd(a, b);
+  z.v = _mm256_unpacklo_pd(c, d);
+}
+/// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (x, y, z, w at 4v), four at a
+/// time; returns the first particle not done.
+int packParticles(const double* x, const double* y, const double* z, const double* w, double* pos, int begin,
+                  int end) {
+  int v = begin;
+  for (; v + 4 <= end; v += 4) {
+    const __m256d X = _mm256_loadu_pd(x + v), Y = _mm256_loadu_pd(y + v), Z = _mm256_loadu_pd(z + v),
+                  W = _mm256_loadu_pd(w + v);
+    const __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);  // x0 y0 x2 y2, x1 y1 x3 y3
+    const __m256d t2 = _mm256_unpacklo_pd(Z, W), t3 = _mm256_unpackhi_pd(Z, W);  // z0 w0 z2 w2, z1 w1 z3 w3
+    double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
+    _mm256_store_pd(at, _mm256_permute2f128_pd(t0, t2, 0x20));
+    _mm256_store_pd(at + 4, _mm256_permute2f128_pd(t1, t3, 0x20));
+    _mm256_store_pd(at + 8, _mm256_permute2f128_pd(t0, t2, 0x31));
+    _mm256_store_pd(at + 12, _mm256_permute2f128_pd(t1, t3, 0x31));
+  }
+  return v;
+}
+/// The packed copy's x, y, z of particles [begin, end) back into the column arrays, four at a time; returns the first
+/// particle not done.
+int unpackParticles(const double* pos, double* x, double* y, double* z, int begin, int end) {
+  int v = begin;
+  for (; v + 4 <= end; v += 4) {
+    const double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
+    const __m256d q0 = _mm256_load_pd(at), q1 = _mm256_load_pd(at + 4), q2 = _mm256_load_pd(at + 8),
+                  q3 = _mm256_load_pd(at + 12);
+    const __m256d a = _mm256_permute2f128_pd(q0, q2, 0x20), b = _mm256_permute2f128_pd(q1, q3, 0x20);
+    const __m256d c = _mm256_permute2f128_pd(q0, q2, 0x31), d = _mm256_permute2f128_pd(q1, q3, 0x31);
+    _mm256_storeu_pd(x + v, _mm256_unpacklo_pd(a, b));
+    _mm256_storeu_pd(y + v, _mm256_unpackhi_pd(a, b));
+    _mm256_storeu_pd(z + v, _mm256_unpacklo_pd(c, d));
+  }
+  return v;
+}
 }  // namespace lanes4
 
 
 namespace lanes8 {
 // Eight rows as two independent 4-lane packs in lockstep: twice the independent work between the long-latency steps
-// (gathers, square root, divisions) of one row.
+// (loads, square root, divisions) of one row.
 using lanes4::D4;
 struct D8 {
   static constexpr int lanes = 8;
   D4 lo, hi;
-};
-struct Idx {
-  lanes4::Idx lo, hi;
 };
 inline D8 splat(double a) { return {lanes4::splat(a), lanes4::splat(a)}; }
 inline D8 loadu(const double* p) { return {lanes4::loadu(p), lanes4::loadu(p + 4)}; }
@@ -230,14 +347,6 @@ inline void storeu(D8 a, double* out) {
   lanes4::storeu(a.lo, out);
   lanes4::storeu(a.hi, out + 4);
 }
-inline Idx loadIdx(const int* p) { return {lanes4::loadIdx(p), lanes4::loadIdx(p + 4)}; }
-inline Idx iota(int r) { return {lanes4::iota(r), lanes4::iota(r + 4)}; }
-inline Idx gatherIdx(const int* base, Idx k) { return {lanes4::gatherIdx(base, k.lo), lanes4::gatherIdx(base, k.hi)}; }
-inline void storeIdx(Idx k, int* out) {
-  lanes4::storeIdx(k.lo, out);
-  lanes4::storeIdx(k.hi, out + 4);
-}
-inline D8 gather(const double* b, Idx k) { return {lanes4::gather(b, k.lo), lanes4::gather(b, k.hi)}; }
 #define MSK_D8_BINARY(op, f) \
   inline D8 op(D8 a, D8 b) { return {lanes4::f(a.lo, b.lo), lanes4::f(a.hi, b.hi)}; }
 inline D8 operator+(D8 a, D8 b) { return {a.lo + b.lo, a.hi + b.hi}; }
@@ -259,6 +368,28 @@ inline D8 vsqrt(D8 a) { return {lanes4::vsqrt(a.lo), lanes4::vsqrt(a.hi)}; }
 inline D8 vabs(D8 a) { return {lanes4::vabs(a.lo), lanes4::vabs(a.hi)}; }
 inline D8 select(D8 m, D8 a, D8 b) { return {lanes4::select(m.lo, a.lo, b.lo), lanes4::select(m.hi, a.hi, b.hi)}; }
 inline int bits(D8 m) { return lanes4::bits(m.lo) | (lanes4::bits(m.hi) << 4); }
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+// Q + Q and Q · Q: the compilers' own vector arithmetic on __m256d (vaddpd, vmulpd).
+inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
+  lanes4::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
+  lanes4::loadPoints(pos, idx + 4, x.hi, y.hi, z.hi, w.hi);
+}
+inline void toQ(D8 x, D8 y, D8 z, Q* out) {
+  lanes4::toQ(x.lo, y.lo, z.lo, out);
+  lanes4::toQ(x.hi, y.hi, z.hi, out + 4);
+}
+inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
+  lanes4::toQ4(a.lo, b.lo, c.lo, d.lo, out);
+  lanes4::toQ4(a.hi, b.hi, c.hi, d.hi, out + 4);
+}
+inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
+  lanes4::fromQ(in, x.lo, y.lo, z.lo);
+  lanes4::fromQ(in + 4, x.hi, y.hi, z.hi);
+}
 
 using Pack = D8;
 #include "simplex_batch_kernel.inc"
@@ -269,14 +400,190 @@ using Pack = D8;
 #pragma GCC pop_options
 #endif
 
+// ---------------------------------------------------------------------------------------- eight lanes (AVX-512)
+
+// Eight rows in one 512-bit pack, 32 vector registers (AVX-512 F, DQ, VL), chosen at run time like AVX2. Masks are
+// kept as all-ones / all-zeros lanes, as on the narrower paths, and the same operations run lane by lane: no fused
+// multiply-add (contraction off), so the results are bitwise those of the SSE2 and AVX2 paths.
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2,avx512f,avx512dq,avx512vl"))), apply_to = function)
+#pragma clang fp contract(off)
+#else
+#pragma GCC push_options
+#pragma GCC target("avx2,avx512f,avx512dq,avx512vl")
+#pragma GCC optimize("fp-contract=off")
+// GCC 12's AVX-512 intrinsics start from _mm512_undefined_pd(), which -Wmaybe-uninitialized reports at every use.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+namespace lanes16 {
+struct D8 {
+  static constexpr int lanes = 8;
+  __m512d v;
+};
+inline __m512i bitsOf(D8 a) { return _mm512_castpd_si512(a.v); }
+inline D8 fromBits(__m512i a) { return {_mm512_castsi512_pd(a)}; }
+/// All-ones lanes where `k` is set.
+inline D8 maskOf(__mmask8 k) { return fromBits(_mm512_maskz_set1_epi64(k, -1)); }
+inline __mmask8 maskBits(D8 m) { return _mm512_test_epi64_mask(bitsOf(m), bitsOf(m)); }
+inline D8 splat(double a) { return {_mm512_set1_pd(a)}; }
+inline D8 loadu(const double* p) { return {_mm512_loadu_pd(p)}; }
+inline void storeu(D8 a, double* out) { _mm512_storeu_pd(out, a.v); }
+inline D8 operator+(D8 a, D8 b) { return {_mm512_add_pd(a.v, b.v)}; }
+inline D8 operator-(D8 a, D8 b) { return {_mm512_sub_pd(a.v, b.v)}; }
+inline D8 operator*(D8 a, D8 b) { return {_mm512_mul_pd(a.v, b.v)}; }
+inline D8 operator/(D8 a, D8 b) { return {_mm512_div_pd(a.v, b.v)}; }
+inline D8 vsqrt(D8 a) { return {_mm512_sqrt_pd(a.v)}; }
+inline D8 vmax(D8 a, D8 b) { return {_mm512_max_pd(a.v, b.v)}; }
+inline D8 vabs(D8 a) { return fromBits(_mm512_andnot_si512(_mm512_set1_epi64(INT64_MIN), bitsOf(a))); }
+inline D8 gt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GT_OQ)); }
+inline D8 lt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_LT_OQ)); }
+inline D8 ge(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GE_OQ)); }
+inline D8 eq(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_EQ_OQ)); }
+inline D8 notLe(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_NLE_UQ)); }
+inline D8 operator&(D8 a, D8 b) { return fromBits(_mm512_and_si512(bitsOf(a), bitsOf(b))); }
+inline D8 operator|(D8 a, D8 b) { return fromBits(_mm512_or_si512(bitsOf(a), bitsOf(b))); }
+inline D8 operator~(D8 m) { return fromBits(_mm512_xor_si512(bitsOf(m), _mm512_set1_epi64(-1))); }
+inline D8 select(D8 m, D8 a, D8 b) { return {_mm512_mask_blend_pd(maskBits(m), b.v, a.v)}; }
+inline D8 flipSign(D8 a, D8 s) {
+  return fromBits(_mm512_xor_si512(bitsOf(a), _mm512_and_si512(bitsOf(s), _mm512_set1_epi64(INT64_MIN))));
+}
+inline int bits(D8 m) { return maskBits(m); }
+/// The 4-lane halves of a pack and back.
+inline lanes4::D4 lo(D8 a) { return {_mm512_castpd512_pd256(a.v)}; }
+inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
+inline D8 join(lanes4::D4 l, lanes4::D4 h) {
+  return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)};
+}
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
+  lanes4::D4 xl, yl, zl, wl, xh, yh, zh, wh;
+  lanes4::loadPoints(pos, idx, xl, yl, zl, wl);
+  lanes4::loadPoints(pos, idx + 4, xh, yh, zh, wh);
+  x = join(xl, xh);
+  y = join(yl, yh);
+  z = join(zl, zh);
+  w = join(wl, wh);
+}
+inline void toQ(D8 x, D8 y, D8 z, Q* out) {
+  lanes4::toQ(lo(x), lo(y), lo(z), out);
+  lanes4::toQ(hi(x), hi(y), hi(z), out + 4);
+}
+inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
+  lanes4::toQ4(lo(a), lo(b), lo(c), lo(d), out);
+  lanes4::toQ4(hi(a), hi(b), hi(c), hi(d), out + 4);
+}
+inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
+  lanes4::D4 xl, yl, zl, xh, yh, zh;
+  lanes4::fromQ(in, xl, yl, zl);
+  lanes4::fromQ(in + 4, xh, yh, zh);
+  x = join(xl, xh);
+  y = join(yl, yh);
+  z = join(zl, zh);
+}
+}  // namespace lanes16
+
+namespace lanes32 {
+// Sixteen rows as two independent 8-lane packs in lockstep (as lanes8 over lanes4).
+using lanes16::D8;
+struct D16 {
+  static constexpr int lanes = 16;
+  D8 lo, hi;
+};
+inline D16 splat(double a) { return {lanes16::splat(a), lanes16::splat(a)}; }
+inline D16 loadu(const double* p) { return {lanes16::loadu(p), lanes16::loadu(p + 8)}; }
+inline void storeu(D16 a, double* out) {
+  lanes16::storeu(a.lo, out);
+  lanes16::storeu(a.hi, out + 8);
+}
+#define MSK_D16_BINARY(op, f) \
+  inline D16 op(D16 a, D16 b) { return {lanes16::f(a.lo, b.lo), lanes16::f(a.hi, b.hi)}; }
+inline D16 operator+(D16 a, D16 b) { return {a.lo + b.lo, a.hi + b.hi}; }
+inline D16 operator-(D16 a, D16 b) { return {a.lo - b.lo, a.hi - b.hi}; }
+inline D16 operator*(D16 a, D16 b) { return {a.lo * b.lo, a.hi * b.hi}; }
+inline D16 operator/(D16 a, D16 b) { return {a.lo / b.lo, a.hi / b.hi}; }
+inline D16 operator&(D16 a, D16 b) { return {a.lo & b.lo, a.hi & b.hi}; }
+inline D16 operator|(D16 a, D16 b) { return {a.lo | b.lo, a.hi | b.hi}; }
+inline D16 operator~(D16 m) { return {~m.lo, ~m.hi}; }
+MSK_D16_BINARY(vmax, vmax)
+MSK_D16_BINARY(gt, gt)
+MSK_D16_BINARY(lt, lt)
+MSK_D16_BINARY(ge, ge)
+MSK_D16_BINARY(eq, eq)
+MSK_D16_BINARY(notLe, notLe)
+MSK_D16_BINARY(flipSign, flipSign)
+#undef MSK_D16_BINARY
+inline D16 vsqrt(D16 a) { return {lanes16::vsqrt(a.lo), lanes16::vsqrt(a.hi)}; }
+inline D16 vabs(D16 a) { return {lanes16::vabs(a.lo), lanes16::vabs(a.hi)}; }
+inline D16 select(D16 m, D16 a, D16 b) {
+  return {lanes16::select(m.lo, a.lo, b.lo), lanes16::select(m.hi, a.hi, b.hi)};
+}
+inline int bits(D16 m) { return lanes16::bits(m.lo) | (lanes16::bits(m.hi) << 8); }
+using lanes4::Q;
+using lanes4::keepW;
+using lanes4::loadQ;
+using lanes4::splatQ;
+using lanes4::storeQ;
+inline void loadPoints(const double* pos, const int* idx, D16& x, D16& y, D16& z, D16& w) {
+  lanes16::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
+  lanes16::loadPoints(pos, idx + 8, x.hi, y.hi, z.hi, w.hi);
+}
+inline void toQ(D16 x, D16 y, D16 z, Q* out) {
+  lanes16::toQ(x.lo, y.lo, z.lo, out);
+  lanes16::toQ(x.hi, y.hi, z.hi, out + 8);
+}
+inline void toQ4(D16 a, D16 b, D16 c, D16 d, Q* out) {
+  lanes16::toQ4(a.lo, b.lo, c.lo, d.lo, out);
+  lanes16::toQ4(a.hi, b.hi, c.hi, d.hi, out + 8);
+}
+inline void fromQ(const Q* in, D16& x, D16& y, D16& z) {
+  lanes16::fromQ(in, x.lo, y.lo, z.lo);
+  lanes16::fromQ(in + 8, x.hi, y.hi, z.hi);
+}
+using Pack = D16;
+#include "simplex_batch_kernel.inc"
+}  // namespace lanes32
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC diagnostic pop
+#pragma GCC pop_options
+#endif
+
 /// Whether this processor (and its operating system) runs AVX2.
 bool avxAvailable() {
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx2");
 }
+
+/// Whether this processor (and its operating system) runs AVX-512 F, DQ and VL.
+bool avx512Available() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+         __builtin_cpu_supports("avx512vl");
+}
 #else
 bool avxAvailable() { return false; }
+bool avx512Available() { return false; }
 #endif
+
+/// Sets `buffer` to n zeros, asking the kernel (Linux) for 2 MB pages over it before the first touch where it is large:
+/// the sweeps' neighbour loads land on random pages, and 4 KB pages miss the TLB beyond a few megabytes.
+void zeroFilled(std::vector<double>& buffer, size_t n) {
+  buffer.clear();
+  buffer.shrink_to_fit();
+  buffer.reserve(n);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  const std::uintptr_t huge = std::uintptr_t(2) << 20, at = reinterpret_cast<std::uintptr_t>(buffer.data());
+  const std::uintptr_t lo = (at + huge - 1) & ~(huge - 1), hi = (at + n * sizeof(double)) & ~(huge - 1);
+  if (hi > lo) madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);  // advice only: failure is harmless
+#endif
+  buffer.assign(n, 0.0);
+}
 
 }  // namespace
 
@@ -340,8 +647,8 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     ceps2_[i] = eps2_[v];
     chr_[i] = hr_[v];
   }
-  for (auto* a : {&dx_, &dy_, &dz_}) a->assign(un, 0.0);
-  c_.assign(4 * un, 0.0);
+  zeroFilled(pos_, 4 * un + 8);
+  zeroFilled(d_, 8 * un + 8);
   // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
   revStart_.assign(un + 1, 0);
   for (int v = 0; v < n; ++v) {
@@ -356,70 +663,120 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     for (int slot = 0; slot < 4; ++slot) {
       const int j = slot == 0 ? v : nb(v, slot - 1);
       const size_t at = static_cast<size_t>(fill[static_cast<size_t>(j)]++);
-      revFlat_[at] = slot * n + v;
+      revFlat_[at] = 8 * v + 4 + slot;
       revRow_[at] = v;
     }
   uniform4_ = true;
   for (size_t v = 0; v < un; ++v) uniform4_ = uniform4_ && revStart_[v + 1] - revStart_[v] == 4;
   if (uniform4_) {  // entry-major copies: entry e of particles v .. v + 3 contiguous
     tFlat_.resize(4 * un);
-    tRow_.resize(4 * un);
     for (size_t v = 0; v < un; ++v)
-      for (size_t e = 0; e < 4; ++e) {
-        tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
-        tRow_[e * un + v] = revRow_[static_cast<size_t>(revStart_[v]) + e];
-      }
+      for (size_t e = 0; e < 4; ++e) tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
   }
   kept_.assign(un, 0);
-  wide_ = avxAvailable();
+  useLanes(BatchLanes::Avx512);
 }
 
-void SimplexInternalBatch::useWideLanes(bool on) { wide_ = on && avxAvailable(); }
+void SimplexInternalBatch::useWideLanes(bool on) { useLanes(on ? BatchLanes::Avx512 : BatchLanes::Sse2); }
+
+void SimplexInternalBatch::useLanes(BatchLanes widest) {
+  lanes_ = BatchLanes::Sse2;
+  if (widest != BatchLanes::Sse2 && avxAvailable()) lanes_ = BatchLanes::Avx2;
+  if (widest == BatchLanes::Avx512 && avx512Available()) lanes_ = BatchLanes::Avx512;
+}
 
 void SimplexInternalBatch::checkSizes(const Points& p, const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size() && w.size() == p.rows(),
              "simplex internal batch: size mismatch");
 }
 
+void SimplexInternalBatch::checkRange(int begin, int end) const {
+  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
+}
+
+double* SimplexInternalBatch::aligned(std::vector<double>& buffer) {
+  const auto at = reinterpret_cast<std::uintptr_t>(buffer.data());
+  return buffer.data() + ((64 - at % 64) % 64) / sizeof(double);
+}
+
+const double* SimplexInternalBatch::aligned(const std::vector<double>& buffer) {
+  return aligned(const_cast<std::vector<double>&>(buffer));
+}
+
+void SimplexInternalBatch::loadRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
+  checkSizes(p, w);
+  checkRange(begin, end);
+  const double* x = p.data() + first_;
+  const double* y = x + p.rows();
+  const double* z = y + p.rows();
+  const double* wv = w.data() + first_;
+  double* q = aligned(pos_);
+  int v = begin;
+#if MSK_BATCH_AVX
+  if (lanes_ != BatchLanes::Sse2) v = lanes4::packParticles(x, y, z, wv, q, begin, end);
+#endif
+  for (; v < end; ++v) {
+    double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    at[0] = x[v];
+    at[1] = y[v];
+    at[2] = z[v];
+    at[3] = wv[v];
+  }
+}
+
+void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
+  MSK_ASSERT(first_ >= 0 && p.rows() >= first_ + size(), "simplex internal batch: size mismatch");
+  checkRange(begin, end);
+  double* x = p.data() + first_;
+  double* y = x + p.rows();
+  double* z = y + p.rows();
+  const double* q = aligned(pos_);
+  int v = begin;
+#if MSK_BATCH_AVX
+  if (lanes_ != BatchLanes::Sse2) v = lanes4::unpackParticles(q, x, y, z, begin, end);
+#endif
+  for (; v < end; ++v) {
+    const double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    x[v] = at[0];
+    y[v] = at[1];
+    z[v] = at[2];
+  }
+}
+
 namespace {
-BatchArrays arraysOf(const Points& p, const Eigen::VectorXd& w, int first, const std::vector<int>& order,
-                     const std::vector<int>& n0, const std::vector<int>& n1, const std::vector<int>& n2,
-                     const std::vector<double>& e0, const std::vector<double>& e1, const std::vector<double>& e2,
-                     const std::vector<double>& hr) {
-  double* base = const_cast<double*>(p.data());  // written only by the sweeps that take Points&
-  const Eigen::Index rows = p.rows();
-  return BatchArrays{base + first,   base + rows + first, base + 2 * rows + first,
-                     w.data() + first, order.data(),       n0.data(),
-                     n1.data(),        n2.data(),          e0.data(),
-                     e1.data(),        e2.data(),          hr.data()};
+BatchArrays arraysOf(double* pos, const std::vector<int>& order, const std::vector<int>& n0,
+                     const std::vector<int>& n1, const std::vector<int>& n2, const std::vector<double>& e0,
+                     const std::vector<double>& e1, const std::vector<double>& e2, const std::vector<double>& hr) {
+  return BatchArrays{pos,       order.data(), n0.data(), n1.data(), n2.data(),
+                     e0.data(), e1.data(),    e2.data(), hr.data()};
 }
 }  // namespace
 
-int SimplexInternalBatch::projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const {
-  checkSizes(p, w);
-  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
+int SimplexInternalBatch::projectRange(int begin, int end) {
+  checkRange(begin, end);
+  const BatchArrays a = arraysOf(aligned(pos_), order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
 #if MSK_BATCH_AVX
-  if (wide_) return lanes8::projectRows(a, gamma_, begin, end);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::projectRows(a, gamma_, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::projectRows(a, gamma_, begin, end);
 #endif
   return lanes2::projectRows(a, gamma_, begin, end);
 }
 
-int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) const {
+int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) {
+  loadRange(p, w, 0, size());
   int skipped = 0;
-  for (int k = 0; k < colours(); ++k) skipped += projectRange(p, w, colourBegin(k), colourBegin(k + 1));
+  for (int k = 0; k < colours(); ++k) skipped += projectRange(colourBegin(k), colourBegin(k + 1));
+  storeRange(p, 0, size());
   return skipped;
 }
 
-int SimplexInternalBatch::computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end) {
-  checkSizes(p, w);
-  MSK_ASSERT(begin >= 0 && begin <= end && end <= size(), "simplex internal batch: bad row range");
-  const BatchArrays a = arraysOf(p, w, first_, order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
-  const size_t n = order_.size();
-  double* c = c_.data();
-  const JacobiOut o{dx_.data(), dy_.data(), dz_.data(), c, c + n, c + 2 * n, c + 3 * n, kept_.data()};
+int SimplexInternalBatch::computeRange(int begin, int end) {
+  checkRange(begin, end);
+  const BatchArrays a = arraysOf(aligned(pos_), order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const JacobiOut o{aligned(d_), kept_.data()};
 #if MSK_BATCH_AVX
-  if (wide_) return lanes8::computeRows(a, gamma_, begin, end, o);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::computeRows(a, gamma_, begin, end, o);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::computeRows(a, gamma_, begin, end, o);
 #endif
   return lanes2::computeRows(a, gamma_, begin, end, o);
 }
@@ -432,10 +789,10 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
   const std::uint8_t* kept = kept_.data();
   const int* row = revRow_.data();
   if (uniform4_) {
-    const int* t = tRow_.data();
+    const int* t = tFlat_.data();  // row = flat / 8
     const int n = size();
     for (int v = 0; v < n; ++v) {
-      const int k = kept[t[v]] + kept[t[n + v]] + kept[t[2 * n + v]] + kept[t[3 * n + v]];
+      const int k = kept[t[v] >> 3] + kept[t[n + v] >> 3] + kept[t[2 * n + v] >> 3] + kept[t[3 * n + v] >> 3];
       cnt[v] += wv[v] > 0 ? k : 0;
     }
     return;
@@ -456,13 +813,14 @@ void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omeg
   // ω / m for the usual counts m (a closed 2-simplex mesh alone gives 4), a division beyond.
   double share[9];
   for (int m = 0; m < 9; ++m) share[m] = omega / std::max(m, 1);
+  double* d = aligned(d_);
   for (int v = begin; v < end; ++v) {
     const size_t r = static_cast<size_t>(v);
     const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
     const double scale = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
-    dx_[r] *= scale;
-    dy_[r] *= scale;
-    dz_[r] *= scale;
+    d[8 * r] *= scale;
+    d[8 * r + 1] *= scale;
+    d[8 * r + 2] *= scale;
   }
 }
 
@@ -472,12 +830,14 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   double* x = p.data() + first_;
   double* y = x + p.rows();
   double* z = y + p.rows();
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), tRow_.data(), c_.data(), dx_.data(),
-                     dy_.data(), dz_.data(), post};
+  const double* d = aligned(d_);
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
-    v = wide_ ? lanes8::applyParticles(j, x, y, z, begin, end) : lanes2::applyParticles(j, x, y, z, begin, end);
+    v = lanes_ == BatchLanes::Avx512 ? lanes32::applyParticles(j, x, y, z, begin, end)
+        : lanes_ == BatchLanes::Avx2 ? lanes8::applyParticles(j, x, y, z, begin, end)
+                                     : lanes2::applyParticles(j, x, y, z, begin, end);
 #else
     v = lanes2::applyParticles(j, x, y, z, begin, end);
 #endif
@@ -486,10 +846,10 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
     double ax = 0, ay = 0, az = 0;
     for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e) {
       const size_t r = static_cast<size_t>(revRow_[static_cast<size_t>(e)]);
-      const double c = c_[static_cast<size_t>(revFlat_[static_cast<size_t>(e)])];
-      ax += c * dx_[r];
-      ay += c * dy_[r];
-      az += c * dz_[r];
+      const double c = d[revFlat_[static_cast<size_t>(e)]];
+      ax += c * d[8 * r];
+      ay += c * d[8 * r + 1];
+      az += c * d[8 * r + 2];
     }
     x[v] += post * ax;
     y[v] += post * ay;
@@ -499,12 +859,33 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
 
 void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { applyScaled(p, begin, end, 1.0); }
 
+bool SimplexInternalBatch::equalShares(const Eigen::VectorXd& w) const {
+  MSK_ASSERT(first_ >= 0 && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
+  return uniform4_ && (w.segment(first_, size()).array() > 0).all();
+}
+
+void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, int end) const {
+  applyScaled(p, begin, end, omega / 4);
+}
+
+void SimplexInternalBatch::applyEqualSharesPacked(double omega, int begin, int end) {
+  MSK_ASSERT(uniform4_, "simplex internal batch: equal shares need every particle in 4 rows");
+  checkRange(begin, end);
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), aligned(d_), omega / 4};
+  double* pos = aligned(pos_);
+#if MSK_BATCH_AVX
+  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, begin, end);
+#endif
+  lanes2::applyParticlesPacked(j, pos, begin, end);
+}
+
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
-  const int skipped = computeRange(p, w, 0, size());
-  const auto free = w.segment(first_, size()).array();
-  if (skipped == 0 && uniform4_ && (free > 0).all()) {
+  loadRange(p, w, 0, size());
+  const int skipped = computeRange(0, size());
+  if (skipped == 0 && equalShares(w)) {
     // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
-    applyScaled(p, 0, size(), omega / 4);
+    applyEqualShares(p, omega, 0, size());
   } else {
     ownCounts_.setZero(w.size());
     addCounts(w, ownCounts_);

@@ -1,6 +1,7 @@
 #include "msk/core/solver.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -106,6 +107,7 @@ struct Solver::Impl {
   Points x, v, p, force, scratch;
   Eigen::VectorXd w, fallbackK;
   Eigen::VectorXi counts;
+  SimplexInternalBatch* resident = nullptr;  ///< batch whose packed copy is newer than p
   int steps = 0, cgIterations = 0;
   double cgResidual = 0;
   std::map<std::string, double> seconds;
@@ -164,6 +166,15 @@ struct Solver::Impl {
     return internal ? internal->batch() : nullptr;
   }
 
+  /// Writes the packed copy of the batch swept last (colouredSweep(), or Jacobi of a set alone with equal shares)
+  /// back into p (its positions are newer than p's until then); every other reader of p calls this first.
+  void storeResident() {
+    if (!resident) return;
+    SimplexInternalBatch* b = resident;
+    pool.run(b->size(), [&](int lo, int hi) { b->storeRange(p, lo, hi); });
+    resident = nullptr;
+  }
+
   void applyRow(const ConstraintRow& r, const Eigen::Vector3d& dl, double scale, Points& q) const {
     for (int j = 0; j < r.count; ++j) q.row(r.index[j]) += ((scale * w[r.index[j]] * r.react[j]) * dl).transpose();
   }
@@ -173,12 +184,18 @@ struct Solver::Impl {
   /// One sweep of set `s` over p in coloured order: PBD (xpbdStep ≤ 0) or XPBD with substep h = xpbdStep.
   void colouredSweep(ConstraintSet& s, double xpbdStep) {
     if (SimplexInternalBatch* b = xpbdStep <= 0 ? batchOf(s) : nullptr) {
+      if (resident != b) {  // consecutive sweeps of one batch keep its packed copy (storeResident() writes it back)
+        storeResident();
+        pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
+        resident = b;
+      }
       for (int k = 0; k < b->colours(); ++k) {
         const int begin = b->colourBegin(k);
-        pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(p, w, begin + lo, begin + hi); });
+        pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(begin + lo, begin + hi); });
       }
       return;
     }
+    storeResident();
     SetCache& c = cacheFor(s);
     s.beginRows(p, w);
     const double k = opts.stiffness;
@@ -211,11 +228,17 @@ struct Solver::Impl {
   void jacobiIteration(const std::vector<ConstraintSet*>& sets) {
     const int n = static_cast<int>(p.rows());
     counts.setZero(n);
+    SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
+    if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
-        pool.run(b->size(), [&](int lo, int hi) { b->computeRange(p, w, lo, hi); });
-        b->addCounts(w, counts);
+        if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
+        std::atomic<int> skipped{0};
+        pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
+        // Counted alone with every row kept on a closed mesh of free particles: every share is ω/4 (no counts).
+        if (sets.size() == 1 && skipped == 0 && b->equalShares(w)) equalShares = b;
+        else b->addCounts(w, counts);
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         s->beginRows(p, w);
@@ -248,8 +271,14 @@ struct Solver::Impl {
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
-        pool.run(b->size(), [&](int lo, int hi) { b->scaleRange(counts, opts.omega, lo, hi); });
-        pool.run(b->size(), [&](int lo, int hi) { b->applyRange(p, lo, hi); });
+        if (b == equalShares) {  // alone: into its packed copy, kept for the next iteration (storeResident())
+          pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
+          resident = b;
+        } else {
+          storeResident();  // p current before the corrections are added to it
+          pool.run(b->size(), [&](int lo, int hi) { b->scaleRange(counts, opts.omega, lo, hi); });
+          pool.run(b->size(), [&](int lo, int hi) { b->applyRange(p, lo, hi); });
+        }
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         forRows(c, [&](int r) {
@@ -325,6 +354,7 @@ struct Solver::Impl {
       for (ConstraintSet* s : sets)
         if (s->rowCount() > 0)
           for (auto& l : cacheFor(*s).lambda) l.setZero();
+    resident = nullptr;  // p was just predicted: no packed copy holds newer positions
     for (int it = 0; it < opts.iterations; ++it) {
       if (opts.scheme == Scheme::Jacobi) {
         jacobiIteration(sets);
@@ -332,11 +362,16 @@ struct Solver::Impl {
       }
       for (ConstraintSet* s : sets) {
         const auto t0 = Clock::now();
-        if (opts.scheme == Scheme::GaussSeidel || s->rowCount() == 0) s->project(p, w);
-        else colouredSweep(*s, opts.scheme == Scheme::Xpbd ? h : 0.0);
+        if (opts.scheme == Scheme::GaussSeidel || s->rowCount() == 0) {
+          storeResident();
+          s->project(p, w);
+        } else {
+          colouredSweep(*s, opts.scheme == Scheme::Xpbd ? h : 0.0);
+        }
         addSeconds(*s, t0);
       }
     }
+    storeResident();
     v = (p - x) / h;
     x.swap(p);
     if (velocities) velocityPass(sets, h);

@@ -18,6 +18,9 @@ namespace {
 
 using msk::Points;
 
+/// Every instruction set of the sweeps (each falls back to the widest narrower one the processor has).
+constexpr msk::BatchLanes kAllLanes[] = {msk::BatchLanes::Sse2, msk::BatchLanes::Avx2, msk::BatchLanes::Avx512};
+
 /// A perturbed simplex sphere (radius 50 mm) stacked after `offset` unconstrained particles, with random inverse masses
 /// spread over `massDecades` decades around 1, a fixed neighbourhood (vertex 7 and its neighbours), a few other fixed
 /// vertices, and vertex 100's first two neighbours made coincident (a degenerate neighbourhood).
@@ -110,13 +113,13 @@ TEST_P(SimplexBatchAgreement, ColouredSweepsMatchTheSolver) {
   const Case c = GetParam();
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 11);
   const Points expected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 3, c.gamma, 1.0);
-  for (bool wide : {false, true}) {  // two lanes (SSE2) and eight (AVX2, where the processor has it)
+  for (msk::BatchLanes lanes : kAllLanes) {  // 2 rows at a time (SSE2), 8 (AVX2), 16 (AVX-512) where available
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) batch.colouredSweep(p, pr.w);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
     EXPECT_TRUE(p.topRows(pr.offset) == pr.p0.topRows(pr.offset));  // particles outside the set untouched
   }
 }
@@ -126,13 +129,13 @@ TEST_P(SimplexBatchAgreement, JacobiSweepsMatchTheSolver) {
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 12);
   const double omega = 1.5;
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 3, c.gamma, omega);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) batch.jacobiSweep(p, pr.w, omega);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
@@ -141,13 +144,13 @@ TEST_P(SimplexBatchAgreement, JacobiWithoutSkipsOrFixedParticlesMatchesTheSolver
   const Case c = GetParam();
   const Problem pr = makeProblem(3, std::min(c.perturbation, 0.5), c.massDecades, 5, 15, false);
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 3, c.gamma, 1.5);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0;
     for (int it = 0; it < 3; ++it) EXPECT_EQ(batch.jacobiSweep(p, pr.w, 1.5), 0);
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
@@ -156,11 +159,12 @@ TEST_P(SimplexBatchAgreement, SkipsTheRowsThePerRowPathSkips) {
   const Problem pr = makeProblem(3, c.perturbation, c.massDecades, 5, 13);
   const int expected = rowPathSkips(pr, c.gamma);
   EXPECT_GE(expected, 2);  // the fixed neighbourhood and the degenerate one at least
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, c.gamma);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
-    EXPECT_EQ(batch.computeRange(pr.p0, pr.w, 0, batch.size()), expected);
+    batch.useLanes(lanes);
+    batch.loadRange(pr.p0, pr.w, 0, batch.size());
+    EXPECT_EQ(batch.computeRange(0, batch.size()), expected);
     Points p = pr.p0;
     EXPECT_GE(batch.colouredSweep(p, pr.w), 1);  // the fixed neighbourhood stays fixed
   }
@@ -173,22 +177,22 @@ INSTANTIATE_TEST_SUITE_P(Spheres, SimplexBatchAgreement,
                                            Case{2.0, 1.0, 1.0}));  // neighbourhoods folded over
 
 TEST(SimplexBatch, SmallMeshesWithPartialPacksMatchTheSolver) {
-  // 20 vertices: every sweep ends on a partial pack (8 or 2 rows at a time), in the rows and in the particles.
+  // 20 vertices: every sweep ends on a partial pack (16, 8 or 2 rows at a time), in the rows and in the particles.
   for (int offset : {0, 3}) {
     const Problem pr = makeProblem(0, 0.3, 1.0, offset, 16, false);
     const Points coloured = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
     const Points jacobi = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.3);
-    for (bool wide : {false, true}) {
+    for (msk::BatchLanes lanes : kAllLanes) {
       msk::SimplexInternalBatch batch(pr.reference, 0.9);
       batch.setFirstParticle(offset);
-      batch.useWideLanes(wide);
+      batch.useLanes(lanes);
       Points p = pr.p0, q = pr.p0;
       for (int it = 0; it < 2; ++it) {
         batch.colouredSweep(p, pr.w);
         batch.jacobiSweep(q, pr.w, 1.3);
       }
-      EXPECT_LT(relativeDifference(p, coloured, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
-      EXPECT_LT(relativeDifference(q, jacobi, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+      EXPECT_LT(relativeDifference(p, coloured, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
+      EXPECT_LT(relativeDifference(q, jacobi, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
     }
   }
 }
@@ -199,41 +203,44 @@ TEST(SimplexBatch, IrregularNeighbourTablesTakeTheGeneralJacobiPathAndMatchTheSo
   pr.reference.neighbors(0, 2) = pr.reference.vertexCount() / 2;
   const Points expected = solverSweeps(pr, msk::Scheme::Jacobi, 2, 0.9, 1.5);
   const Points colouredExpected = solverSweeps(pr, msk::Scheme::ColouredGaussSeidel, 2, 0.9, 1.0);
-  for (bool wide : {false, true}) {
+  for (msk::BatchLanes lanes : kAllLanes) {
     msk::SimplexInternalBatch batch(pr.reference, 0.9);
     batch.setFirstParticle(pr.offset);
-    batch.useWideLanes(wide);
+    batch.useLanes(lanes);
     Points p = pr.p0, q = pr.p0;
     for (int it = 0; it < 2; ++it) {
       batch.jacobiSweep(p, pr.w, 1.5);
       batch.colouredSweep(q, pr.w);
     }
-    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
-    EXPECT_LT(relativeDifference(q, colouredExpected, pr.p0), 1e-12) << "wide lanes " << batch.wideLanes();
+    EXPECT_LT(relativeDifference(p, expected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
+    EXPECT_LT(relativeDifference(q, colouredExpected, pr.p0), 1e-12) << "lanes " << static_cast<int>(batch.lanes());
   }
 }
 
-TEST(SimplexBatch, BothLaneWidthsGiveBitwiseTheSameSweeps) {
+TEST(SimplexBatch, EveryLaneWidthGivesBitwiseTheSameSweeps) {
+  // SSE2 (2 rows at a time) against AVX2 (8) and AVX-512 (16), where the processor has them (else the same path again).
   const Problem pr = makeProblem(4, 0.8, 2.0, 2, 17);
-  for (bool jacobi : {false, true}) {
-    msk::SimplexInternalBatch two(pr.reference, 0.8), wide(pr.reference, 0.8);
-    two.setFirstParticle(pr.offset);
-    wide.setFirstParticle(pr.offset);
-    two.useWideLanes(false);
-    wide.useWideLanes(true);  // the SSE2 path again where the processor lacks AVX2
-    Points a = pr.p0, b = pr.p0;
-    for (int it = 0; it < 10; ++it) {
-      if (jacobi) {
-        two.jacobiSweep(a, pr.w, 1.4);
-        wide.jacobiSweep(b, pr.w, 1.4);
-      } else {
-        two.colouredSweep(a, pr.w);
-        wide.colouredSweep(b, pr.w);
+  for (bool jacobi : {false, true})
+    for (msk::BatchLanes lanes : {msk::BatchLanes::Avx2, msk::BatchLanes::Avx512}) {
+      msk::SimplexInternalBatch two(pr.reference, 0.8), wide(pr.reference, 0.8);
+      two.setFirstParticle(pr.offset);
+      wide.setFirstParticle(pr.offset);
+      two.useLanes(msk::BatchLanes::Sse2);
+      wide.useLanes(lanes);
+      Points a = pr.p0, b = pr.p0;
+      for (int it = 0; it < 10; ++it) {
+        if (jacobi) {
+          two.jacobiSweep(a, pr.w, 1.4);
+          wide.jacobiSweep(b, pr.w, 1.4);
+        } else {
+          two.colouredSweep(a, pr.w);
+          wide.colouredSweep(b, pr.w);
+        }
       }
+      EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())), 0)
+          << (jacobi ? "jacobi" : "coloured") << " on lanes " << static_cast<int>(wide.lanes())
+          << ", largest difference " << (a - b).cwiseAbs().maxCoeff();
     }
-    EXPECT_EQ(std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())), 0)
-        << (jacobi ? "jacobi" : "coloured") << ", largest difference " << (a - b).cwiseAbs().maxCoeff();
-  }
 }
 
 TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {
@@ -305,4 +312,44 @@ TEST(SimplexBatch, SolverRunsTheBatchWithTheRowsResultOnAnyThreadCount) {
   ASSERT_NE(memory.batch(), nullptr);
   EXPECT_EQ(memory.batch()->firstParticle(), 3);
   EXPECT_EQ(memory.batch()->size(), pr.reference.vertexCount());
+}
+
+// Closed mesh, every particle free: the Solver's Jacobi takes the equal shares (ω/4, no counts) for a set counted
+// alone; the coloured scheme keeps the packed copy between iterations. Both agree with the rows and are bitwise the
+// same on one and two threads.
+TEST(SimplexBatch, SolverShortcutsMatchTheRowsOnAnyThreadCount) {
+  const Problem pr = makeProblem(4, 0.3, 2.0, 3, 19, false);
+  for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi}) {
+    const Points rows = solverSweeps(pr, scheme, 4, 0.8, 1.5, false, 1);
+    const Points one = solverSweeps(pr, scheme, 4, 0.8, 1.5, true, 1);
+    const Points two = solverSweeps(pr, scheme, 4, 0.8, 1.5, true, 2);
+    EXPECT_LT(relativeDifference(one, rows, pr.p0), 1e-12) << msk::schemeName(scheme);
+    EXPECT_TRUE(one == two) << msk::schemeName(scheme) << ": thread count changed the result";
+    EXPECT_GT((one - pr.p0).cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
+// Two batch sets on the same particles (different stiffness), swept in turn by the Solver: each sweep must see the
+// other's corrections (the packed copy written back and reloaded between them), as the rows do.
+TEST(SimplexBatch, SolverAlternatingBatchSetsMatchTheRows) {
+  const Problem pr = makeProblem(3, 0.5, 1.0, 2, 20);
+  for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi}) {
+    Points result[2];
+    for (int batch = 0; batch < 2; ++batch) {
+      msk::SimplexInternalConstraints a(pr.reference, 0.9), b(pr.reference, 0.4);
+      a.setFirstParticle(pr.offset);
+      b.setFirstParticle(pr.offset);
+      msk::SolverOptions o;
+      o.scheme = scheme;
+      o.iterations = 3;
+      o.omega = 1.2;
+      o.threads = 1;
+      o.batchKernels = batch == 1;
+      msk::Solver solver(o);
+      solver.prepare(pr.p0, pr.w);
+      solver.step({&a, &b});
+      result[batch] = solver.positions();
+    }
+    EXPECT_LT(relativeDifference(result[1], result[0], pr.p0), 1e-12) << msk::schemeName(scheme);
+  }
 }

@@ -1,18 +1,24 @@
 #pragma once
 /// Batch kernel of the 2-simplex internal constraint (shape memory): the data of a SimplexInternalConstraints set as a
 /// struct of arrays (one row per vertex, in vertex order, plus the Solver's colour order), and Jacobi and coloured
-/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, eight rows at a time (two 4-lane packs,
-/// hardware gathers) where the processor has AVX2 (chosen at run time; the build flags stay baseline), else two
-/// (SSE2 doubles, or plain scalars off x86). The sweeps give the corrections of the Solver's per-row path (solver.h:
-/// ConstraintRow of SimplexInternalConstraints, PBD step Δλ = −γ C / W, same skip rules) up to rounding.
+/// Gauss–Seidel sweeps over it without virtual calls or per-row allocation, sixteen rows at a time (two 8-lane packs)
+/// where the processor has AVX-512, eight (two 4-lane packs) where it has AVX2 (chosen at run time; the build flags
+/// stay baseline), else two (SSE2 doubles, or plain scalars off x86). The sweeps read and write a packed working copy
+/// of the set's particles (x, y, z, w: 32 bytes per particle, one load per neighbour instead of four gathers), filled
+/// by loadRange() and written back by storeRange().
+/// They give the corrections of the Solver's per-row path (solver.h: ConstraintRow of SimplexInternalConstraints,
+/// PBD step Δλ = −γ C / W, same skip rules) up to rounding.
 ///
 /// Wiring into a scheme (what Solver's Jacobi and coloured Gauss–Seidel would call instead of row()):
 ///   SimplexInternalBatch b(reference, gamma);  b.setFirstParticle(first);     // once per set
-///   coloured:  for each colour k: b.projectRange(p, w, b.colourBegin(k), b.colourBegin(k + 1))  (a colour's range
-///              may be split over threads: its rows share no particle)
-///   Jacobi:    b.computeRange(p, w, begin, end) over [0, size()), then b.addCounts(w, counts) (adding to the other
-///              sets' counts), then once every set is counted b.scaleRange(counts, omega, begin, end) and
-///              b.applyRange(p, begin, end) over [0, size()); every step but addCounts() may be split over threads.
+///   coloured:  b.loadRange(p, w, 0, size()), then for each colour k: b.projectRange(b.colourBegin(k),
+///              b.colourBegin(k + 1)) (a colour's range may be split over threads: its rows share no particle), then
+///              b.storeRange(p, 0, size()); loadRange() and storeRange() may be split over threads too.
+///   Jacobi:    b.loadRange(p, w, 0, size()), b.computeRange(begin, end) over [0, size()), then b.addCounts(w, counts)
+///              (adding to the other sets' counts), then once every set is counted b.scaleRange(counts, omega, begin,
+///              end) and b.applyRange(p, begin, end) over [0, size()); every step but addCounts() may be split over
+///              threads. A set counted alone with no row skipped and b.equalShares(w) may instead call
+///              b.applyEqualShares(p, omega, begin, end) after computeRange() (every share ω/4).
 #include <cstdint>
 #include <vector>
 
@@ -22,6 +28,11 @@
 #include "msk/core/simplex_mesh.h"
 
 namespace msk {
+
+/// Instruction set of the batch sweeps: SSE2 (two rows at a time), AVX2 (eight, as two 4-lane packs) or AVX-512 F/DQ/VL
+/// (sixteen, as two 8-lane packs, 32 registers). All run the same operations lane by lane (no fused multiply-add), so
+/// their results are bitwise the same.
+enum class BatchLanes { Sse2, Avx2, Avx512 };
 
 /// 2-simplex internal constraints (DESIGN-NOTES §2, method 2; shape memory P̃ = Σ ε̃i Pi + h̃ r⊥ n) as a batch: one row
 /// per vertex, the colouring the Solver computes for the same set; lengths in mm, inverse masses w ≥ 0.
@@ -47,24 +58,34 @@ class SimplexInternalBatch {
   int colours() const { return static_cast<int>(colourStart_.size()) - 1; }
   /// First position of colour k in the colour order (k = colours() gives size()).
   int colourBegin(int k) const { return colourStart_[static_cast<size_t>(k)]; }
-  /// The AVX2 path (8 rows at a time) where the processor has it (the default), or the SSE2 one (2 rows) with `on` =
-  /// false. Both run the same operations lane by lane, so their results are bitwise the same.
+  /// The widest instruction set the processor has (the default), or SSE2 (2 rows at a time) with `on` = false.
   void useWideLanes(bool on);
-  /// Whether the sweeps take the AVX2 path.
-  bool wideLanes() const { return wide_; }
+  /// Whether the sweeps take a path wider than SSE2.
+  bool wideLanes() const { return lanes_ != BatchLanes::Sse2; }
+  /// The widest instruction set the processor has, up to `widest` (SSE2 always runs).
+  void useLanes(BatchLanes widest);
+  /// The instruction set the sweeps take.
+  BatchLanes lanes() const { return lanes_; }
   /// Vertex (local index) at position i of the colour order.
   int colourOrder(int i) const { return order_[static_cast<size_t>(i)]; }
 
-  /// Coloured Gauss–Seidel on positions [begin, end) of the colour order, within one colour: each row's PBD correction
-  /// at `p` applied at once (ΔPj = wj rj Δλ, Δλ = γ (P̃ − P) / W). `p` (#N×3, mm) and `w` (#N) are the solver's whole
-  /// arrays. Returns the number of rows skipped (degenerate or every particle fixed).
-  int projectRange(Points& p, const Eigen::VectorXd& w, int begin, int end) const;
-  /// One coloured Gauss–Seidel sweep over every row, colour by colour; returns the rows skipped.
-  int colouredSweep(Points& p, const Eigen::VectorXd& w) const;
+  /// Copies the set's particles [begin, end) (local indices) of `p` (#N×3, mm) and `w` (#N), the solver's whole
+  /// arrays, into the working copy the sweeps use. Disjoint ranges may run at the same time.
+  void loadRange(const Points& p, const Eigen::VectorXd& w, int begin, int end);
+  /// Writes the working copy's positions of particles [begin, end) back into `p`. Disjoint ranges may run at once.
+  void storeRange(Points& p, int begin, int end) const;
+  /// Coloured Gauss–Seidel on positions [begin, end) of the colour order, within one colour, on the working copy
+  /// (loadRange()): each row's PBD correction applied at once (ΔPj = wj rj Δλ, Δλ = γ (P̃ − P) / W). Returns the
+  /// number of rows skipped (degenerate or every particle fixed).
+  int projectRange(int begin, int end);
+  /// One coloured Gauss–Seidel sweep over every row of `p`, colour by colour (load, sweep, store); returns the rows
+  /// skipped.
+  int colouredSweep(Points& p, const Eigen::VectorXd& w);
 
-  /// Jacobi, step 1: the corrections of rows (vertices) [begin, end) at positions `p`, kept for the next steps
-  /// (skipped rows keep zeros). Disjoint ranges may run at the same time. Returns the rows skipped.
-  int computeRange(const Points& p, const Eigen::VectorXd& w, int begin, int end);
+  /// Jacobi, step 1: the corrections of rows (vertices) [begin, end) at the working copy's positions (loadRange()),
+  /// kept for the next steps (skipped rows keep zeros). Disjoint ranges may run at the same time. Returns the rows
+  /// skipped.
+  int computeRange(int begin, int end);
   /// Jacobi, step 2: counts[j] += the number of rows kept by computeRange() that touch particle j, for every free
   /// particle j (w > 0) of the set (the Solver's counts, summed over every set before step 3).
   void addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& counts) const;
@@ -74,16 +95,27 @@ class SimplexInternalBatch {
   /// Jacobi, step 4, particles (local indices) [begin, end): each adds the scaled corrections of the rows touching it,
   /// gathered (no scatter), so disjoint ranges may run at the same time.
   void applyRange(Points& p, int begin, int end) const;
-  /// One Jacobi iteration of this set alone (counts from its own rows), relaxation ω; returns the rows skipped.
+  /// Whether steps 2 and 3 may be skipped when this set alone is counted and computeRange() skipped no row: every
+  /// particle of the set sits in exactly 4 rows (a closed 2-simplex mesh) and is free (w > 0), so every share is ω/4.
+  bool equalShares(const Eigen::VectorXd& w) const;
+  /// Jacobi, step 4 with equal shares (equalShares()), particles [begin, end): each adds ω/4 times the unscaled
+  /// corrections of its 4 rows. Disjoint ranges may run at the same time.
+  void applyEqualShares(Points& p, double omega, int begin, int end) const;
+  /// applyEqualShares() into the packed working copy instead of `p` (bitwise the same positions; storeRange() writes
+  /// them back), so that a set iterated alone needs no loadRange() between its iterations.
+  void applyEqualSharesPacked(double omega, int begin, int end);
+  /// One Jacobi iteration of this set alone on `p` (load, compute, counts from its own rows, scale, apply; or the
+  /// equal shares when they hold), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
  private:
   /// Fills every array from the neighbour table and reference parameters (both constructors).
   void build(const NeighborTable& nb, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR);
   void checkSizes(const Points& p, const Eigen::VectorXd& w) const;
+  void checkRange(int begin, int end) const;
   /// applyRange() with every sum times `post`.
   void applyScaled(Points& p, int begin, int end, double post) const;
-  bool wide_ = false;
+  BatchLanes lanes_ = BatchLanes::Sse2;
   int first_ = 0;
   double gamma_;
   std::vector<int> colourStart_;            ///< #colours + 1 offsets into order_
@@ -94,12 +126,18 @@ class SimplexInternalBatch {
   // The same per-row data in colour order (position i: vertex order_[i]), read by the Gauss–Seidel sweeps.
   std::vector<int> cnb0_, cnb1_, cnb2_;
   std::vector<double> ceps0_, ceps1_, ceps2_, chr_;
-  // Jacobi corrections of the last computeRange(): d = P̃ − P (times the row's ω / count after scaleRange()) and the
-  // coefficients cj, ΔPj = cj d, c_ holding slot j of row r at j·n + r.
-  std::vector<double> dx_, dy_, dz_, c_;
-  // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_).
+  /// First 64-byte aligned double of `buffer` (allocated 8 doubles longer than its contents).
+  static double* aligned(std::vector<double>& buffer);
+  static const double* aligned(const std::vector<double>& buffer);
+  std::vector<double> pos_;  ///< working copy: particle v's x, y, z, w at 4v .. 4v + 3 of aligned(pos_)
+  // Jacobi corrections of the last computeRange(), one 64-byte record (a cache line) per row r at 8r of aligned(d_):
+  // d = P̃ − P (times the row's ω / count after scaleRange()) at 8r .. 8r + 2 (8r + 3 zero), and the coefficients
+  // cj of its particles, ΔPj = cj d, at 8r + 4 + j.
+  std::vector<double> d_;
+  // Rows touching each particle (CSR over revStart_): the row (revRow_) and the place of its coefficient (revFlat_:
+  // 8·row + 4 + slot, its record at revFlat_ & ~7).
   std::vector<int> revStart_, revRow_, revFlat_;
-  std::vector<int> tRow_, tFlat_;  ///< with uniform4_: the same, entry e of particle v at e·n + v
+  std::vector<int> tFlat_;  ///< with uniform4_: revFlat_ entry e of particle v at e·n + v
   bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
