@@ -250,3 +250,28 @@ TEST(VolumeModel, KeepsItsVolumeUnlessTheImageDemandsOtherwise) {
     }
   }
 }
+
+// What the mesh optimisers cost (printed; run with --gtest_also_run_disabled_tests): the phantom muscles' templates
+// tetrahedralised as the segmenter does, plain and with ODT + perturbation + exudation.
+TEST(VolumeModel, DISABLED_TetrahedralisationTimeMeasured) {
+  const std::string dir = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1";
+  for (const char* name : {"hamstrings", "quadriceps", "adductors"}) {
+    const msk::TriangleMesh t = msk::readMesh(dir + "/template_" + std::string(name) + ".vtk");
+    const double edge = msk::meanEdgeLength(t);
+    for (bool optimise : {false, true}) {
+      msk::TetOptions to;
+      to.facetSizeMm = edge;
+      to.cellSizeMm = 1.5 * edge;
+      to.facetDistanceMm = 0.1 * edge;
+      to.odt = to.perturb = to.exude = optimise;
+      const auto t0 = std::chrono::steady_clock::now();
+      const msk::TetMesh m = msk::tetrahedralize(t, to);
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const Eigen::VectorXd angle = msk::tetMinDihedralAngles(m);
+      std::printf("[          ] %-11s %-9s %6d tets, %.2f s, smallest dihedral %.2f deg, %d under 5 deg\n", name,
+                  optimise ? "optimised" : "plain", m.tetCount(), s, angle.minCoeff(),
+                  static_cast<int>((angle.array() < 5.0).count()));
+      EXPECT_EQ(msk::tetMeshProblem(m), "");
+    }
+  }
+}
