@@ -130,6 +130,32 @@ Eigen::VectorXd tetVolumes(const TetMesh& m) {
 
 double totalVolume(const TetMesh& m) { return tetVolumes(m).sum(); }
 
+Eigen::VectorXd tetMinDihedralAngles(const TetMesh& m) {
+  // The dihedral angle at edge (i, j) is π minus the angle between the outward normals of the two faces sharing it,
+  // the faces opposite the other two nodes k and l.
+  static const int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  Eigen::VectorXd out(m.tetCount());
+  for (int t = 0; t < m.tetCount(); ++t) {
+    Vec3 n[4];
+    for (int j = 0; j < 4; ++j) {
+      const Vec3 a = m.nodes.row(m.tets(t, kFace[j][0])), b = m.nodes.row(m.tets(t, kFace[j][1])),
+                 c = m.nodes.row(m.tets(t, kFace[j][2]));
+      n[j] = (b - a).cross(c - a);
+    }
+    double smallest = M_PI;
+    for (const auto& e : kEdges) {
+      int other[2], k = 0;
+      for (int j = 0; j < 4; ++j)
+        if (j != e[0] && j != e[1]) other[k++] = j;
+      const double na = n[other[0]].norm(), nb = n[other[1]].norm();
+      const double cosine = na > 0 && nb > 0 ? std::clamp(n[other[0]].dot(n[other[1]]) / (na * nb), -1.0, 1.0) : 1.0;
+      smallest = std::min(smallest, M_PI - std::acos(cosine));
+    }
+    out[t] = smallest * 180.0 / M_PI;
+  }
+  return out;
+}
+
 std::string tetMeshProblem(const TetMesh& m) {
   const int nn = m.nodeCount(), nt = m.tetCount();
   if (nn == 0 || nt == 0) return "empty tet mesh (" + str(nn) + " nodes, " + str(nt) + " tets)";
@@ -306,6 +332,39 @@ TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p) {
   TetMesh out;
   out.nodes = solver.solve(rhs);
   out.tets = vm.tets;
+  return out;
+}
+
+Points relaxVolumeSimplexTets(const VolumeSimplexMesh& vm, const Points& p, double mu) {
+  const int nt = vm.tetCount(), n = vm.vertexCount();
+  MSK_ASSERT(p.rows() == n, "relaxVolumeSimplexTets: " + str(p.rows()) + " positions for " + str(n) + " vertices");
+  if (!(mu > 0) || !std::isfinite(mu)) throw ParameterError("relax weight", std::to_string(mu), "must be > 0");
+  // Row t: P_t − Σ_{tet neighbours} ε̃i Pi = Σ_{ghost neighbours} ε̃i Pi (M x = b). A degenerate = 2 tet gives no row.
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(nt) * 5);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(nt, 3);
+  for (int t = 0; t < nt; ++t) {
+    if (vm.degenerate[t] == 2) continue;
+    trip.emplace_back(t, t, 1.0);
+    for (int i = 0; i < 4; ++i) {
+      const int u = vm.simplex.neighbors(t, i);
+      if (u < nt)
+        trip.emplace_back(t, u, -vm.epsilon(t, i));
+      else
+        b.row(t) += vm.epsilon(t, i) * p.row(u);
+    }
+  }
+  Eigen::SparseMatrix<double> m(nt, nt);
+  m.setFromTriplets(trip.begin(), trip.end());
+  // (MᵀM + μI) x = Mᵀb + μ x₀: the constraints met as far as they determine the tets, the rest left at the start.
+  Eigen::SparseMatrix<double> a = m.transpose() * m;
+  for (int t = 0; t < nt; ++t) a.coeffRef(t, t) += mu;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(a);
+  if (solver.info() != Eigen::Success) throw Error("relaxVolumeSimplexTets: factorisation failed");
+  const Eigen::MatrixXd rhs = m.transpose() * b + mu * Eigen::MatrixXd(p.topRows(nt));
+  Points out = p;
+  out.topRows(nt) = solver.solve(rhs);
+  if (!out.allFinite()) throw Error("relaxVolumeSimplexTets: non-finite solution");
   return out;
 }
 

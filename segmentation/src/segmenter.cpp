@@ -14,6 +14,7 @@
 
 #include "msk/core/error.h"
 #include "msk/core/medial_axis.h"
+#include "msk/core/volume_preservation.h"
 #include "msk/core/volume_simplex.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/surface_separation.h"
@@ -303,6 +304,7 @@ struct ObjectState {
   // the tetrahedralised template), so the surface and the volume share those particles.
   std::optional<VolumeSimplexMesh> volume;
   std::unique_ptr<VolumeSimplexConstraints> volumeSet;
+  std::unique_ptr<VolumePreservation> volumeHold;  ///< holds the template's volume unless the image demands another
   int volFirst = 0;        ///< first tet particle in the stacked system
   Points volStart, volFinal;  ///< tet particles at the start and the end of the finest level
   /// Tet particles at level l (0 unless the object is volumetric and l is the finest level).
@@ -312,7 +314,8 @@ struct ObjectState {
     std::vector<ConstraintSet*> out;
     for (ConstraintSet* c : {static_cast<ConstraintSet*>(targets.get()), static_cast<ConstraintSet*>(internal.get()),
                              static_cast<ConstraintSet*>(prior.get()), static_cast<ConstraintSet*>(radial.get()),
-                             static_cast<ConstraintSet*>(centering.get()), static_cast<ConstraintSet*>(volumeSet.get())})
+                             static_cast<ConstraintSet*>(centering.get()), static_cast<ConstraintSet*>(volumeSet.get()),
+                             static_cast<ConstraintSet*>(volumeHold.get())})
       if (c) out.push_back(c);
     return out;
   }
@@ -349,6 +352,8 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
     to.facetSizeMm = edge;
     to.cellSizeMm = 1.5 * edge;
     to.facetDistanceMm = 0.1 * edge;
+    // ODT smoothing, sliver perturbation and exudation: fewer badly shaped tets to fold at the surface.
+    to.odt = to.perturb = to.exude = true;
     tets = tetrahedralize(obj.templ, to);
     st.volume = volumeSimplexFromTets(tets);
     st.lv[0].triangles = tetBoundary(tets);
@@ -434,6 +439,7 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
                     fit.topRightCorner<3, 1>().transpose());
   }
   st.volumeSet.reset();
+  st.volumeHold.reset();
   if (st.volume && l == 0) {
     // Tet vertices start where the best affine fit of the template surface onto the current one puts them.
     const int nt = st.volume->tetCount();
@@ -443,6 +449,8 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
                   fit.topRightCorner<3, 1>().transpose();
     const double gamma = model.volumeStiffness >= 0 ? model.volumeStiffness : opts.volumeStiffness;
     st.volumeSet = std::make_unique<VolumeSimplexConstraints>(*st.volume, gamma, VolumeBoundary::SurfaceDriven);
+    // The template's volume, held unless the image demands another (volume_preservation.h).
+    st.volumeHold = std::make_unique<VolumePreservation>(ref.simplex);
   }
   for (ConstraintSet* c : st.sets()) c->setFirstParticle(st.first);
   if (st.volumeSet) st.volumeSet->setFirstParticle(st.volFirst);  // tets first, then the ghosts = the surface
@@ -548,6 +556,7 @@ void finishObject(ObjectState& st) {
     Points all(st.volume->vertexCount(), 3);
     all.topRows(st.volume->tetCount()) = st.volFinal;
     all.bottomRows(st.volume->ghostCount()) = st.current.positions;
+    all = relaxVolumeSimplexTets(*st.volume, all);  // the tets' equilibrium with the final surface (no lag)
     out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all);
     out.volumeModelMm3 = totalVolume(out.volumeMesh);
     const Eigen::VectorXd vols = tetVolumes(out.volumeMesh);

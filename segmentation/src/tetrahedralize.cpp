@@ -16,7 +16,11 @@
 #include <CGAL/Polyhedral_mesh_domain_3.h>
 #include <CGAL/Polyhedron_3.h>
 #include <CGAL/Random.h>
+#include <CGAL/exude_mesh_3.h>
+#include <CGAL/lloyd_optimize_mesh_3.h>
 #include <CGAL/make_mesh_3.h>
+#include <CGAL/odt_optimize_mesh_3.h>
+#include <CGAL/perturb_mesh_3.h>
 
 #include "msk/core/error.h"
 
@@ -63,6 +67,10 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetOptions& opt) {
   checkPositive("facet distance (mm)", opt.facetDistanceMm, true);
   if (!(opt.facetAngleDeg > 0 && opt.facetAngleDeg <= 30))
     throw ParameterError("facet angle (degrees)", std::to_string(opt.facetAngleDeg), "must be in (0, 30]");
+  if (!(opt.sliverBoundDeg >= 0 && opt.sliverBoundDeg < 70.6))
+    throw ParameterError("sliver bound (degrees)", std::to_string(opt.sliverBoundDeg), "must be in [0, 70.5]");
+  if (opt.optimiseIterations < 1)
+    throw ParameterError("optimiser passes", std::to_string(opt.optimiseIterations), "must be ≥ 1");
   if (!(opt.cellRadiusEdgeRatio >= 2))
     throw ParameterError("cell radius-edge ratio", std::to_string(opt.cellRadiusEdgeRatio), "must be ≥ 2");
 
@@ -81,10 +89,13 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetOptions& opt) {
   namespace p = CGAL::parameters;
   const Criteria criteria(p::facet_angle = opt.facetAngleDeg, p::facet_size = facet, p::facet_distance = distance,
                           p::cell_radius_edge_ratio = opt.cellRadiusEdgeRatio, p::cell_size = cell);
-  const Complex c3t3 =
-      opt.exude
-          ? CGAL::make_mesh_3<Complex>(domain, criteria, p::no_perturb(), p::exude(), p::no_lloyd(), p::no_odt())
-          : CGAL::make_mesh_3<Complex>(domain, criteria, p::no_perturb(), p::no_exude(), p::no_lloyd(), p::no_odt());
+  Complex c3t3 =
+      CGAL::make_mesh_3<Complex>(domain, criteria, p::no_perturb(), p::no_exude(), p::no_lloyd(), p::no_odt());
+  // Optimisers in CGAL's order (global smoothing, then perturbation, then exudation), none with a time limit.
+  if (opt.odt) CGAL::odt_optimize_mesh_3(c3t3, domain, p::max_iteration_number = opt.optimiseIterations);
+  if (opt.lloyd) CGAL::lloyd_optimize_mesh_3(c3t3, domain, p::max_iteration_number = opt.optimiseIterations);
+  if (opt.perturb) CGAL::perturb_mesh_3(c3t3, domain, p::sliver_bound = opt.sliverBoundDeg);
+  if (opt.exude) CGAL::exude_mesh_3(c3t3, p::sliver_bound = opt.sliverBoundDeg);
 
   // Cells inside the domain → tets; vertices numbered in order of first use.
   const Triangulation& tr = c3t3.triangulation();

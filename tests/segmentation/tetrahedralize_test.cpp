@@ -91,6 +91,31 @@ TEST(Tetrahedralize, ExudationRemovesSlivers) {
               exuded.tetCount());
 }
 
+// ODT smoothing, perturbation and exudation (as the segmenter's volume models use them): no sliver left (smallest
+// dihedral angle above 10°, none at all before), same volume, and the same mesh when run twice in one process.
+TEST(Tetrahedralize, OptimisersRemoveSliversRepeatably) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
+  msk::TetOptions options;
+  options.odt = options.perturb = options.exude = true;
+  const msk::TetMesh plain = msk::tetrahedralize(sphere), a = msk::tetrahedralize(sphere, options),
+                     b = msk::tetrahedralize(sphere, options);
+  EXPECT_EQ(msk::tetMeshProblem(a), "");
+  const double before = msk::tetMinDihedralAngles(plain).minCoeff(), after = msk::tetMinDihedralAngles(a).minCoeff();
+  std::printf("[measure] smallest dihedral angle: %.2f deg plain (%d tets), %.2f deg optimised (%d tets)\n", before,
+              plain.tetCount(), after, a.tetCount());
+  EXPECT_GT(after, 10.0);
+  EXPECT_GT(after, before);
+  EXPECT_NEAR(msk::totalVolume(a), msk::totalVolume(plain), 0.01 * msk::totalVolume(plain));
+  EXPECT_TRUE(a.tets == b.tets);
+  EXPECT_TRUE(a.nodes == b.nodes);
+  msk::TetOptions bad;
+  bad.sliverBoundDeg = 80;
+  EXPECT_THROW(msk::tetrahedralize(sphere, bad), msk::ParameterError);
+  bad = {};
+  bad.optimiseIterations = 0;
+  EXPECT_THROW(msk::tetrahedralize(sphere, bad), msk::ParameterError);
+}
+
 TEST(Tetrahedralize, RejectsOpenSurfacesAndBadOptions) {
   msk::TriangleMesh open = msk::makeIcosphere(10.0, 1);
   open.faces.conservativeResize(open.faceCount() - 1, 3);

@@ -48,6 +48,9 @@ Eigen::VectorXd tetVolumes(const TetMesh& mesh);
 /// Sum of the signed tet volumes, mm³.
 double totalVolume(const TetMesh& mesh);
 
+/// Smallest of the 6 dihedral angles of every tet, #T (degrees; 0 for a flat tet, slivers have a few degrees).
+Eigen::VectorXd tetMinDihedralAngles(const TetMesh& mesh);
+
 /// Why a mesh is not a valid tet mesh (empty if valid): non-empty, indices in range, no repeated node in a tet,
 /// finite nodes, every tet positively oriented, every triangle face shared by at most two tets.
 std::string tetMeshProblem(const TetMesh& mesh);
@@ -108,6 +111,12 @@ Points volumeSimplexResiduals(const VolumeSimplexMesh& model, const Points& posi
 /// simplex vertex and every boundary face's node mean equal its ghost, min |A N − P|² + μ|N − N₀|² with N₀ the mean
 /// of the incident simplex vertices and μ small (1e-6), so the rest positions give back the rest nodes.
 TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& positions);
+
+/// The tets' equilibrium under their 3-simplex constraints with the ghosts held (SurfaceDriven), nearest to where
+/// they are: returns `positions` (#(T+B)×3) with the tet rows x replaced by argmin Σ_t |Σ ε̃i Pi − P_t|² + μ|x − x₀|²
+/// (x₀ the given tet rows, μ > 0 dimensionless), one sparse solve. The constraints alone leave some tet motions free
+/// (the system is singular on regular meshes), which μ keeps at the start. Throws ParameterError if μ ≤ 0.
+Points relaxVolumeSimplexTets(const VolumeSimplexMesh& model, const Points& positions, double mu = 1e-3);
 
 /// Enclosed volume of the model at `positions` (#(T+B)×3), mm³: the sum of the signed volumes of the tets whose
 /// nodes tetsFromVolumeSimplex() recovers (the primal volume, not the volume of the dual cells).

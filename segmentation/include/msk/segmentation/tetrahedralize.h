@@ -13,17 +13,26 @@ struct TetOptions {
   double facetDistanceMm = 0;      ///< largest facet-to-surface distance (mm); 0 = the cell size / 20
   double facetAngleDeg = 25;       ///< smallest boundary-facet angle (degrees, ≤ 30 guarantees termination)
   double cellRadiusEdgeRatio = 3;  ///< largest circumradius / shortest edge of a tet (≥ 2)
-  /// Sliver exudation (CGAL's exuder): far fewer flat tets, but it breaks ties by memory address, so the
-  /// connectivity can differ between runs in one process. Off by default, which keeps results repeatable.
+  /// Sliver exudation (CGAL's exuder, after the optional optimisers below): far fewer flat tets. It may break ties by
+  /// memory address, so the connectivity can differ between runs in one process. Off by default.
   bool exude = false;
+  /// Sliver perturbation (CGAL's perturber: moves the nodes of the flattest tets, deterministic generator). Off by default.
+  bool perturb = false;
+  /// ODT smoothing of the interior nodes (CGAL's odt_optimize_mesh_3, at most `optimiseIterations` passes).
+  bool odt = false;
+  /// Lloyd smoothing of the interior nodes (CGAL's lloyd_optimize_mesh_3, at most `optimiseIterations` passes).
+  bool lloyd = false;
+  int optimiseIterations = 20;  ///< passes of ODT or Lloyd smoothing (no time limit, so runs are repeatable)
+  /// Dihedral angle (degrees) the perturber and the exuder aim at; 0 = as high as they can get.
+  double sliverBoundDeg = 0;
   unsigned seed = 0;  ///< seed of CGAL's random generator for the domain's initial points
 };
 
 /// Tetrahedralises the inside of a closed, outward-oriented triangle surface (world mm) with CGAL Mesh_3
-/// (polyhedral domain, Exact_predicates_inexact_constructions_kernel, sequential; no perturbation, Lloyd or ODT; no
+/// (polyhedral domain, Exact_predicates_inexact_constructions_kernel, sequential; optimisers as `options` say; no
 /// sharp-feature protection, so creases are rounded at the facet distance). Every tet is positively oriented; nodes not
-/// used by a tet are dropped. Nodes and tets come in a canonical order (nodes by coordinates), so without exudation the
-/// result depends only on the input and the options (fixed seed). Throws Error if the surface is not closed and
+/// used by a tet are dropped. Nodes and tets come in a canonical order (nodes by coordinates), so the result depends only on
+/// the input and the options (fixed seed; exudation aside, see TetOptions::exude). Throws Error if the surface is not closed and
 /// consistently oriented (closedMeshProblem), encloses no volume, or the mesher yields no tet, and ParameterError on a
 /// negative size or an out-of-range angle or ratio.
 TetMesh tetrahedralize(const TriangleMesh& closedSurface, const TetOptions& options = {});
