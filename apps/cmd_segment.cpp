@@ -233,6 +233,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
         vm["volume_mm3"] = o.volumeModelMm3;
         vm["template_volume_mm3"] = o.volumeModelTemplateMm3;
         vm["volume_change_percent"] = 100.0 * (o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0);
+        vm["volume_decision"] = o.volumeDecision;
         j["volume_model"] = vm;
       }
       j["mean_image_residual_mm"] = o.meanImageResidualMm;

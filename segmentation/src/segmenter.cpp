@@ -562,6 +562,10 @@ void finishObject(ObjectState& st) {
     const Eigen::VectorXd vols = tetVolumes(out.volumeMesh);
     out.invertedTets = static_cast<int>((vols.array() <= 0).count());
     out.volumeModelTemplateMm3 = volumeSimplexVolume(*st.volume, st.volume->simplex.positions);
+    if (st.volumeHold)
+      out.volumeDecision = st.volumeHold->decision() == VolumeDecision::Holding     ? "holding"
+                           : st.volumeHold->decision() == VolumeDecision::Following ? "following"
+                                                                                     : "observing";
   }
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);

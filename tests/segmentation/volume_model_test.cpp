@@ -59,6 +59,7 @@ struct VolumeRun {
   int invertedSlivers = 0;    ///< inverted tets that were slivers at rest
   double invertedRestDeg = 0; ///< the largest rest min-dihedral angle of an inverted tet
   double templateMm3 = 0, modelMm3 = 0, truthMm3 = 0, surfaceMm3 = 0;
+  std::string decision;       ///< the volume constraint's decision (ObjectResult::volumeDecision)
   double dice = 0, templateDice = 0, seconds = 0;
   /// Volume change of the model against its template, %.
   double changePercent() const { return 100.0 * (modelMm3 / templateMm3 - 1.0); }
@@ -106,6 +107,7 @@ VolumeRun runVolumeModel(const msk::ImageF& image, msk::SceneObject object, cons
     }
   }
   r.templateMm3 = o.volumeModelTemplateMm3;
+  r.decision = o.volumeDecision;
   r.modelMm3 = o.volumeModelMm3;
   r.surfaceMm3 = o.volumeMm3;
   r.truthMm3 = truthMm3;
@@ -241,7 +243,9 @@ TEST(VolumeModel, KeepsItsVolumeUnlessTheImageDemandsOtherwise) {
       EXPECT_GE(r.dice, 0.95);
       if (scale == 1.0) {
         EXPECT_LT(std::fabs(r.changePercent()), 2.0);  // kept
+        EXPECT_EQ(r.decision, "holding");
       } else {
+        EXPECT_EQ(r.decision, "following");
         EXPECT_GT(r.changePercent(), 10.0);            // followed the image
         EXPECT_LT(std::fabs(r.errorPercent()), 5.0);   // to the true volume
       }

@@ -152,6 +152,9 @@ struct ObjectResult {
   double volumeModelMm3 = 0;           ///< its volume, mm³ (0 without a volume model)
   double volumeModelTemplateMm3 = 0;   ///< the volume of the tetrahedralised template, mm³
   int invertedTets = 0;                ///< tets of volumeMesh with volume ≤ 0 (flat slivers of the mesher flip first)
+  /// What the volume model's volume constraint decided (volume_preservation.h): "holding" the template's volume,
+  /// "following" the image (it demanded another), or "observing" (never settled); empty without a volume model.
+  std::string volumeDecision;
 };
 
 /// The result of a scene.
