@@ -12,33 +12,49 @@
 
 namespace msk {
 
+std::vector<size_t> insideVoxels(const TriangleMesh& surface, const Grid& grid) {
+  const LabelMap mask = rasterize(surface, grid);
+  std::vector<size_t> out;
+  for (size_t v = 0; v < mask.data.size(); ++v)
+    if (mask.data[v]) out.push_back(v);
+  return out;
+}
+
 OverlapRepairReport repairOverlapVoxels(const std::vector<TriangleMesh*>& surfaces,
                                         const std::vector<std::pair<int, int>>& pairs, const Grid& grid,
-                                        double marginMm, std::vector<LabelMap>& masks, int maxRounds) {
+                                        double marginMm, std::vector<std::vector<size_t>>& inside, int maxRounds) {
   if (!(std::isfinite(marginMm) && marginMm >= 0))
     throw ParameterError("overlap repair margin", std::to_string(marginMm), "must be finite and ≥ 0 mm");
   if (maxRounds < 0) throw ParameterError("overlap repair rounds", std::to_string(maxRounds), "must be ≥ 0");
-  if (masks.size() != surfaces.size())
-    throw ParameterError("masks", std::to_string(masks.size()), "must be one per surface");
+  if (inside.size() != surfaces.size())
+    throw ParameterError("inside lists", std::to_string(inside.size()), "must be one per surface");
   const int n = static_cast<int>(surfaces.size());
   for (const auto& [a, b] : pairs)
     if (a < 0 || b < 0 || a >= n || b >= n || a == b)
       throw ParameterError("overlap repair pair", std::to_string(a) + "," + std::to_string(b), "index out of range");
-  for (const LabelMap& m : masks)
-    if (m.data.size() != grid.voxelCount())
-      throw ParameterError("mask size", std::to_string(m.data.size()), "must be the grid's voxel count");
+  for (const std::vector<size_t>& list : inside)
+    if (!list.empty() && list.back() >= grid.voxelCount())
+      throw ParameterError("inside voxel", std::to_string(list.back()), "is not a voxel of the grid");
 
   OverlapRepairReport report;
   const double reach = 4.0 * grid.spacing.maxCoeff() + marginMm;
   const Eigen::Index nx = grid.dims[0], ny = grid.dims[1];
   auto sharedCentres = [&] {
-    std::vector<std::pair<size_t, size_t>> shared;  // (voxel, pair index)
-    for (size_t v = 0; v < grid.voxelCount(); ++v)
-      for (size_t k = 0; k < pairs.size(); ++k)
-        if (masks[static_cast<size_t>(pairs[k].first)].data[v] && masks[static_cast<size_t>(pairs[k].second)].data[v]) {
-          shared.emplace_back(v, k);
-          break;
+    std::vector<std::pair<size_t, size_t>> shared;  // (voxel, pair index): sorted lists intersected pair by pair
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      const std::vector<size_t>& a = inside[static_cast<size_t>(pairs[k].first)];
+      const std::vector<size_t>& b = inside[static_cast<size_t>(pairs[k].second)];
+      for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+        if (a[i] < b[j]) {
+          ++i;
+        } else if (b[j] < a[i]) {
+          ++j;
+        } else {
+          shared.emplace_back(a[i], k);
+          ++i, ++j;
         }
+      }
+    }
     return shared;
   };
   std::vector<std::pair<size_t, size_t>> shared = sharedCentres();
@@ -79,7 +95,7 @@ OverlapRepairReport repairOverlapVoxels(const std::vector<TriangleMesh*>& surfac
     for (size_t o = 0; o < surfaces.size(); ++o)
       if (shift[o].rows() > 0) {
         surfaces[o]->vertices += shift[o];
-        masks[o] = rasterize(*surfaces[o], grid);
+        inside[o] = insideVoxels(*surfaces[o], grid);
       }
     shared = sharedCentres();
   }

@@ -850,7 +850,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.objects.push_back(std::move(st.out));
   }
   res.secondsPerStage["evolution"] = since(te) - features.seconds();
-  std::vector<LabelMap> masks;  // each object rasterised, once the output surfaces are final
+  std::vector<std::vector<size_t>> inside;  // each object's voxels (insideVoxels()), once its output surface is final
   if (opts.collisions && !scene.collisions.empty()) {
     // The output surfaces (the dual triangle meshes, not the simplex surfaces the contacts acted on) are separated
     // last, so that what is written out and rasterised has no vertex inside a partner; then penetration is measured
@@ -874,7 +874,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.separationSweeps = sep.sweeps;
     res.separationCorrections = sep.corrections;
     const auto tr = Clock::now();
-    for (const ObjectResult& o : res.objects) masks.push_back(rasterize(o.mesh, image.grid));
+    for (const ObjectResult& o : res.objects) inside.push_back(insideVoxels(o.mesh, image.grid));
     res.secondsPerStage["rasterise"] = since(tr);
     // Voxel centres still inside both surfaces of a pair (edges crossing between the separation's samples) go to one.
     double margin = 0;
@@ -883,7 +883,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       margin = std::max(margin, 0.5 * pairGap(p));
       repairPairs.emplace_back(p.a, p.b);
     }
-    res.overlapVoxelsRepaired = repairOverlapVoxels(surfaces, repairPairs, image.grid, margin, masks).handedOver;
+    res.overlapVoxelsRepaired = repairOverlapVoxels(surfaces, repairPairs, image.grid, margin, inside).handedOver;
     for (size_t i = 0; i < res.objects.size(); ++i) {
       ObjectResult& o = res.objects[i];
       o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - objs[i].lv[0].triangles.vertices).rowwise().norm();
@@ -906,12 +906,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (ObjectKind pass : {ObjectKind::Generic, ObjectKind::Muscle, ObjectKind::Bone})
     for (size_t i = 0; i < res.objects.size(); ++i) {
       if (scene.objects[i].kind != pass) continue;
-      const LabelMap one = masks.empty() ? rasterize(res.objects[i].mesh, image.grid) : masks[i];
-      for (size_t v = 0; v < one.data.size(); ++v)
-        if (one.data[v]) {
-          claims[v] = static_cast<uint8_t>(std::min(255, claims[v] + 1));
-          res.labels.data[v] = res.objects[i].label;
-        }
+      const std::vector<size_t> own = inside.empty() ? insideVoxels(res.objects[i].mesh, image.grid) : inside[i];
+      for (size_t v : own) {
+        claims[v] = static_cast<uint8_t>(std::min(255, claims[v] + 1));
+        res.labels.data[v] = res.objects[i].label;
+      }
     }
   for (uint8_t c : claims) res.overlapVoxels += c > 1;
   res.secondsPerStage["rasterise"] += since(tr);

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <iterator>
+
 #include "msk/core/error.h"
 #include "msk/imaging/rasterize.h"
 
@@ -18,11 +21,11 @@ msk::Grid testGrid() {
   return g;
 }
 
-/// Voxels inside both masks.
-size_t shared(const msk::LabelMap& a, const msk::LabelMap& b) {
-  size_t n = 0;
-  for (size_t v = 0; v < a.data.size(); ++v) n += a.data[v] && b.data[v];
-  return n;
+/// Voxels in both sorted lists.
+size_t shared(const std::vector<size_t>& a, const std::vector<size_t>& b) {
+  std::vector<size_t> both;
+  std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
+  return both.size();
 }
 
 }  // namespace
@@ -34,18 +37,18 @@ TEST(OverlapRepair, OverlappingBallsEndWithNoSharedVoxel) {
   const Eigen::Vector3d ca(0, 0, 0), cb(17, 0.3, -0.2);
   msk::TriangleMesh a = msk::makeIcosphere(10, 4, ca), b = msk::makeIcosphere(10, 4, cb);
   const msk::TriangleMesh a0 = a, b0 = b;
-  std::vector<msk::LabelMap> masks = {msk::rasterize(a, g), msk::rasterize(b, g)};
+  std::vector<std::vector<size_t>> masks = {msk::insideVoxels(a, g), msk::insideVoxels(b, g)};
   const size_t before = shared(masks[0], masks[1]);
   ASSERT_GT(before, 10u);
   const msk::OverlapRepairReport r = msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, masks);
-  const size_t after = shared(msk::rasterize(a, g), msk::rasterize(b, g));
+  const size_t after = shared(msk::insideVoxels(a, g), msk::insideVoxels(b, g));
   std::printf("shared voxels %zu -> %zu; %ld handed over in %d rounds; volumes %.0f -> %.0f and %.0f -> %.0f mm3\n",
               before, after, r.handedOver, r.rounds, msk::enclosedVolume(a0), msk::enclosedVolume(a),
               msk::enclosedVolume(b0), msk::enclosedVolume(b));
   EXPECT_EQ(after, 0u);
   EXPECT_EQ(r.remaining, 0u);
   EXPECT_GE(r.handedOver, static_cast<long>(before));
-  EXPECT_EQ(shared(masks[0], masks[1]), 0u);  // the masks are kept up to date
+  EXPECT_EQ(shared(masks[0], masks[1]), 0u);  // the lists are kept up to date
   for (auto [m, m0, c] : {std::tuple{&a, &a0, ca}, std::tuple{&b, &b0, cb}}) {
     EXPECT_TRUE(msk::closedMeshProblem(*m).empty());
     for (Eigen::Index v = 0; v < m->vertices.rows(); ++v)
@@ -62,7 +65,7 @@ TEST(OverlapRepair, NothingSharedMovesNothing) {
   msk::TriangleMesh a = msk::makeIcosphere(10, 3, Eigen::Vector3d(0, 0, 0));
   msk::TriangleMesh b = msk::makeIcosphere(10, 3, Eigen::Vector3d(21, 0, 0));
   const msk::TriangleMesh a0 = a, b0 = b;
-  std::vector<msk::LabelMap> masks = {msk::rasterize(a, g), msk::rasterize(b, g)};
+  std::vector<std::vector<size_t>> masks = {msk::insideVoxels(a, g), msk::insideVoxels(b, g)};
   const msk::OverlapRepairReport r = msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, masks);
   EXPECT_EQ(r.handedOver, 0);
   EXPECT_EQ(r.rounds, 0);
@@ -75,7 +78,7 @@ TEST(OverlapRepair, OnlyDeclaredPairsAreRepaired) {
   msk::TriangleMesh a = msk::makeIcosphere(10, 3, Eigen::Vector3d(0, 0, 0));
   msk::TriangleMesh b = msk::makeIcosphere(10, 3, Eigen::Vector3d(19, 0, 0));
   msk::TriangleMesh c = msk::makeIcosphere(3, 2, Eigen::Vector3d(0, 0, 20));
-  std::vector<msk::LabelMap> masks = {msk::rasterize(a, g), msk::rasterize(b, g), msk::rasterize(c, g)};
+  std::vector<std::vector<size_t>> masks = {msk::insideVoxels(a, g), msk::insideVoxels(b, g), msk::insideVoxels(c, g)};
   const msk::TriangleMesh a0 = a;
   const msk::OverlapRepairReport r = msk::repairOverlapVoxels({&a, &b, &c}, {{1, 2}}, g, 0.1, masks);
   EXPECT_EQ(r.handedOver, 0);
@@ -86,10 +89,12 @@ TEST(OverlapRepair, OnlyDeclaredPairsAreRepaired) {
 TEST(OverlapRepair, RejectsBadInput) {
   const msk::Grid g = testGrid();
   msk::TriangleMesh a = msk::makeIcosphere(10, 2), b = msk::makeIcosphere(10, 2, Eigen::Vector3d(19, 0, 0));
-  std::vector<msk::LabelMap> masks = {msk::rasterize(a, g), msk::rasterize(b, g)};
+  std::vector<std::vector<size_t>> masks = {msk::insideVoxels(a, g), msk::insideVoxels(b, g)};
   EXPECT_THROW(msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, -1.0, masks), msk::ParameterError);
   EXPECT_THROW(msk::repairOverlapVoxels({&a, &b}, {{0, 2}}, g, 0.1, masks), msk::ParameterError);
   EXPECT_THROW(msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, masks, -1), msk::ParameterError);
-  std::vector<msk::LabelMap> one = {masks[0]};
+  std::vector<std::vector<size_t>> one = {masks[0]};
   EXPECT_THROW(msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, one), msk::ParameterError);
+  std::vector<std::vector<size_t>> outside = {{g.voxelCount()}, {}};
+  EXPECT_THROW(msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, outside), msk::ParameterError);
 }
