@@ -334,64 +334,11 @@ int unpackParticles(const double* pos, double* x, double* y, double* z, int begi
 
 
 namespace lanes8 {
-// Eight rows as two independent 4-lane packs in lockstep: twice the independent work between the long-latency steps
-// (loads, square root, divisions) of one row.
-using lanes4::D4;
-struct D8 {
-  static constexpr int lanes = 8;
-  D4 lo, hi;
-};
-inline D8 splat(double a) { return {lanes4::splat(a), lanes4::splat(a)}; }
-inline D8 loadu(const double* p) { return {lanes4::loadu(p), lanes4::loadu(p + 4)}; }
-inline void storeu(D8 a, double* out) {
-  lanes4::storeu(a.lo, out);
-  lanes4::storeu(a.hi, out + 4);
-}
-#define MSK_D8_BINARY(op, f) \
-  inline D8 op(D8 a, D8 b) { return {lanes4::f(a.lo, b.lo), lanes4::f(a.hi, b.hi)}; }
-inline D8 operator+(D8 a, D8 b) { return {a.lo + b.lo, a.hi + b.hi}; }
-inline D8 operator-(D8 a, D8 b) { return {a.lo - b.lo, a.hi - b.hi}; }
-inline D8 operator*(D8 a, D8 b) { return {a.lo * b.lo, a.hi * b.hi}; }
-inline D8 operator/(D8 a, D8 b) { return {a.lo / b.lo, a.hi / b.hi}; }
-inline D8 operator&(D8 a, D8 b) { return {a.lo & b.lo, a.hi & b.hi}; }
-inline D8 operator|(D8 a, D8 b) { return {a.lo | b.lo, a.hi | b.hi}; }
-inline D8 operator~(D8 m) { return {~m.lo, ~m.hi}; }
-MSK_D8_BINARY(vmax, vmax)
-MSK_D8_BINARY(gt, gt)
-MSK_D8_BINARY(lt, lt)
-MSK_D8_BINARY(ge, ge)
-MSK_D8_BINARY(eq, eq)
-MSK_D8_BINARY(notLe, notLe)
-MSK_D8_BINARY(flipSign, flipSign)
-#undef MSK_D8_BINARY
-inline D8 vsqrt(D8 a) { return {lanes4::vsqrt(a.lo), lanes4::vsqrt(a.hi)}; }
-inline D8 vabs(D8 a) { return {lanes4::vabs(a.lo), lanes4::vabs(a.hi)}; }
-inline D8 select(D8 m, D8 a, D8 b) { return {lanes4::select(m.lo, a.lo, b.lo), lanes4::select(m.hi, a.hi, b.hi)}; }
-inline int bits(D8 m) { return lanes4::bits(m.lo) | (lanes4::bits(m.hi) << 4); }
-using lanes4::Q;
-using lanes4::keepW;
-using lanes4::loadQ;
-using lanes4::splatQ;
-using lanes4::storeQ;
-// Q + Q and Q · Q: the compilers' own vector arithmetic on __m256d (vaddpd, vmulpd).
-inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
-  lanes4::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
-  lanes4::loadPoints(pos, idx + 4, x.hi, y.hi, z.hi, w.hi);
-}
-inline void toQ(D8 x, D8 y, D8 z, Q* out) {
-  lanes4::toQ(x.lo, y.lo, z.lo, out);
-  lanes4::toQ(x.hi, y.hi, z.hi, out + 4);
-}
-inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
-  lanes4::toQ4(a.lo, b.lo, c.lo, d.lo, out);
-  lanes4::toQ4(a.hi, b.hi, c.hi, d.hi, out + 4);
-}
-inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
-  lanes4::fromQ(in, x.lo, y.lo, z.lo);
-  lanes4::fromQ(in + 4, x.hi, y.hi, z.hi);
-}
-
-using Pack = D8;
+// Eight rows as two 4-lane (AVX2) packs in lockstep.
+namespace half = lanes4;
+using Half = lanes4::D4;
+constexpr int kHalfLanes = 4;
+#include "simplex_batch_twin.inc"
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes8
 #if defined(__clang__)
@@ -488,63 +435,11 @@ inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
 }  // namespace lanes16
 
 namespace lanes32 {
-// Sixteen rows as two independent 8-lane packs in lockstep (as lanes8 over lanes4).
-using lanes16::D8;
-struct D16 {
-  static constexpr int lanes = 16;
-  D8 lo, hi;
-};
-inline D16 splat(double a) { return {lanes16::splat(a), lanes16::splat(a)}; }
-inline D16 loadu(const double* p) { return {lanes16::loadu(p), lanes16::loadu(p + 8)}; }
-inline void storeu(D16 a, double* out) {
-  lanes16::storeu(a.lo, out);
-  lanes16::storeu(a.hi, out + 8);
-}
-#define MSK_D16_BINARY(op, f) \
-  inline D16 op(D16 a, D16 b) { return {lanes16::f(a.lo, b.lo), lanes16::f(a.hi, b.hi)}; }
-inline D16 operator+(D16 a, D16 b) { return {a.lo + b.lo, a.hi + b.hi}; }
-inline D16 operator-(D16 a, D16 b) { return {a.lo - b.lo, a.hi - b.hi}; }
-inline D16 operator*(D16 a, D16 b) { return {a.lo * b.lo, a.hi * b.hi}; }
-inline D16 operator/(D16 a, D16 b) { return {a.lo / b.lo, a.hi / b.hi}; }
-inline D16 operator&(D16 a, D16 b) { return {a.lo & b.lo, a.hi & b.hi}; }
-inline D16 operator|(D16 a, D16 b) { return {a.lo | b.lo, a.hi | b.hi}; }
-inline D16 operator~(D16 m) { return {~m.lo, ~m.hi}; }
-MSK_D16_BINARY(vmax, vmax)
-MSK_D16_BINARY(gt, gt)
-MSK_D16_BINARY(lt, lt)
-MSK_D16_BINARY(ge, ge)
-MSK_D16_BINARY(eq, eq)
-MSK_D16_BINARY(notLe, notLe)
-MSK_D16_BINARY(flipSign, flipSign)
-#undef MSK_D16_BINARY
-inline D16 vsqrt(D16 a) { return {lanes16::vsqrt(a.lo), lanes16::vsqrt(a.hi)}; }
-inline D16 vabs(D16 a) { return {lanes16::vabs(a.lo), lanes16::vabs(a.hi)}; }
-inline D16 select(D16 m, D16 a, D16 b) {
-  return {lanes16::select(m.lo, a.lo, b.lo), lanes16::select(m.hi, a.hi, b.hi)};
-}
-inline int bits(D16 m) { return lanes16::bits(m.lo) | (lanes16::bits(m.hi) << 8); }
-using lanes4::Q;
-using lanes4::keepW;
-using lanes4::loadQ;
-using lanes4::splatQ;
-using lanes4::storeQ;
-inline void loadPoints(const double* pos, const int* idx, D16& x, D16& y, D16& z, D16& w) {
-  lanes16::loadPoints(pos, idx, x.lo, y.lo, z.lo, w.lo);
-  lanes16::loadPoints(pos, idx + 8, x.hi, y.hi, z.hi, w.hi);
-}
-inline void toQ(D16 x, D16 y, D16 z, Q* out) {
-  lanes16::toQ(x.lo, y.lo, z.lo, out);
-  lanes16::toQ(x.hi, y.hi, z.hi, out + 8);
-}
-inline void toQ4(D16 a, D16 b, D16 c, D16 d, Q* out) {
-  lanes16::toQ4(a.lo, b.lo, c.lo, d.lo, out);
-  lanes16::toQ4(a.hi, b.hi, c.hi, d.hi, out + 8);
-}
-inline void fromQ(const Q* in, D16& x, D16& y, D16& z) {
-  lanes16::fromQ(in, x.lo, y.lo, z.lo);
-  lanes16::fromQ(in + 8, x.hi, y.hi, z.hi);
-}
-using Pack = D16;
+// Sixteen rows as two 8-lane (AVX-512) packs in lockstep.
+namespace half = lanes16;
+using Half = lanes16::D8;
+constexpr int kHalfLanes = 8;
+#include "simplex_batch_twin.inc"
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes32
 #if defined(__clang__)
