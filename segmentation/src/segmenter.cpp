@@ -906,8 +906,9 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (ObjectKind pass : {ObjectKind::Generic, ObjectKind::Muscle, ObjectKind::Bone})
     for (size_t i = 0; i < res.objects.size(); ++i) {
       if (scene.objects[i].kind != pass) continue;
-      const std::vector<size_t> own = inside.empty() ? insideVoxels(res.objects[i].mesh, image.grid) : inside[i];
-      for (size_t v : own) {
+      std::vector<size_t> computed;  // only without the separation's lists
+      if (inside.empty()) computed = insideVoxels(res.objects[i].mesh, image.grid);
+      for (size_t v : inside.empty() ? computed : inside[i]) {
         claims[v] = static_cast<uint8_t>(std::min(255, claims[v] + 1));
         res.labels.data[v] = res.objects[i].label;
       }
