@@ -497,6 +497,28 @@ void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
   st.centering->setFirstParticle(st.first);
 }
 
+/// One object's image targets at `mesh` (its current surface): the search (timed into st.searchSeconds), score weights
+/// with the optional far-target down-weighting, and a muscle's per-step limit.
+struct ImageTargets {
+  Points targets;
+  Eigen::VectorXd weights, residual;
+};
+ImageTargets imageTargets(ObjectState& st, const SimplexMesh& mesh, const SegmentOptions& opts,
+                          const ImageFeatures& feat, const Grid& grid, const ImageFeatures* focus) {
+  const auto ts = Clock::now();
+  const TargetSearchResult found =
+      searchTargets(feat, mesh.positions, simplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
+                    st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus);
+  st.searchSeconds += since(ts);
+  ImageTargets out{found.targets, scoreWeights(found.scores), found.residual};
+  if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less
+    for (int i = 0; i < out.weights.size(); ++i)
+      out.weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
+  if (opts.muscleTargetStepEdges > 0 && st.obj->kind == ObjectKind::Muscle)
+    limitTargetStep(mesh, opts.muscleTargetStepEdges, out.targets);
+  return out;
+}
+
 /// The axis-first coarse stage (DESIGN-NOTES §4, "evolve the axis first") of an object with a medial axis at level
 /// `l`, after enterLevel() and before the full-surface evolution: the object moves as a generalised cylinder of its
 /// axis (GeneralisedCylinder: the surface keeps its template radii about the axis, the axis is driven by the
@@ -515,19 +537,9 @@ AxisFirstReport runAxisFirst(ObjectState& st, int l, const SegmentOptions& opts,
   SimplexMesh mesh = st.current;
   for (int s = 0; s < opts.axisFirstSteps; ++s) {
     mesh.positions = cylinder.surface(axis);
-    const auto ts = Clock::now();
-    const TargetSearchResult found =
-        searchTargets(feat, mesh.positions, simplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
-                      st.search.mode == TargetMode::Profile ? &st.profiles : nullptr);
-    st.searchSeconds += since(ts);
-    Eigen::VectorXd weights = scoreWeights(found.scores);
-    if (opts.farTargetScaleMm > 0)
-      for (int i = 0; i < weights.size(); ++i)
-        weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
-    Points targets = found.targets;
-    if (opts.muscleTargetStepEdges > 0 && st.obj->kind == ObjectKind::Muscle)
-      limitTargetStep(mesh, opts.muscleTargetStepEdges, targets);
-    const Points displacement = weights.cwiseMin(1.0).cwiseMax(0.0).asDiagonal() * (targets - mesh.positions);
+    const ImageTargets found = imageTargets(st, mesh, opts, feat, grid, nullptr);
+    const Points displacement =
+        found.weights.cwiseMin(1.0).cwiseMax(0.0).asDiagonal() * (found.targets - mesh.positions);
     rep.lastMaxMoveMm = cylinder.step(axis, displacement, opts.axisFirstStage);
     ++rep.steps;
     if (rep.lastMaxMoveMm < rs.toleranceMm) {
@@ -768,19 +780,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       for (auto& st : objs) {
         if (st.prior) st.prior->setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
         st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
-        const auto ts = Clock::now();
-        const Points normals = simplexVertexNormals(st.current);
-        const TargetSearchResult found =
-            searchTargets(feat, st.current.positions, normals, st.current.neighbors, st.search, st.polarity, image.grid,
-                          st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus);
-        st.searchSeconds += since(ts);
-        Eigen::VectorXd weights = scoreWeights(found.scores);
-        if (opts.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less
-          for (int i = 0; i < weights.size(); ++i) weights[i] /= 1.0 + std::pow(found.offsets[i] / opts.farTargetScaleMm, 2);
-        Points targets = found.targets;
-        if (opts.muscleTargetStepEdges > 0 && st.obj->kind == ObjectKind::Muscle)
-          limitTargetStep(st.current, opts.muscleTargetStepEdges, targets);
-        st.targets->setTargets(targets, weights);
+        const ImageTargets found = imageTargets(st, st.current, opts, feat, image.grid, focus);
+        st.targets->setTargets(found.targets, found.weights);
         st.residual = found.residual;
       }
       {
