@@ -241,8 +241,47 @@ double lobeCentroid(const std::vector<double>& value, int arg, double window) {
 }
 
 /// Gradient mode for one vertex: the strongest directional derivative of sign `sign` along the line.
+/// Zeroes the lobes of `value` across which the intensity `line` does not cross `level` from the inside's side to the
+/// outside's. A lobe is a run of positive values, split where the values climb again by more than kLobeDip × the
+/// lobe's peak after a dip (two edges close together, e.g. bone–muscle then muscle–fat under the blur, make one
+/// positive run). value[i] is the derivative centred on line[i + 1], so the lobe [a, b] spans line[a] (inner end) to
+/// line[b + 2] (outer end); `sign` > 0 when the intensity rises outward. A NaN end never crosses.
+void keepLevelCrossingLobes(const std::vector<double>& line, std::vector<double>& value, double sign, double level) {
+  const int n = static_cast<int>(value.size());
+  auto settle = [&](int a, int b) {
+    const bool crosses = sign * (line[a] - level) <= 0 && sign * (line[b + 2] - level) >= 0;
+    if (!crosses)
+      for (int i = a; i <= b; ++i) value[i] = 0;
+  };
+  for (int a = 0; a < n;) {
+    if (!(value[a] > 0)) {
+      ++a;
+      continue;
+    }
+    int start = a, dip = -1, i = a + 1;
+    double peak = value[a];
+    for (; i < n && value[i] > 0; ++i) {
+      if (dip < 0) {
+        if (value[i] >= peak)
+          peak = value[i];
+        else
+          dip = i;
+      } else if (value[i] < value[dip]) {
+        dip = i;
+      } else if (value[i] > value[dip] + kLobeDip * peak) {
+        settle(start, dip);  // the lobes share the dip sample
+        start = dip;
+        peak = value[i];
+        dip = -1;
+      }
+    }
+    settle(start, i - 1);
+    a = i;
+  }
+}
+
 VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r, double sign, double penalty,
-                            double lobeHalfWidthMm, SearchScratch& buf) {
+                            double lobeHalfWidthMm, double level, SearchScratch& buf) {
   const int half = r.halfSearch, n = 2 * half + 1;
   // One extra sample each side so the central difference exists over the whole ±range.
   buf.line.resize(static_cast<size_t>(n + 2));
@@ -257,6 +296,7 @@ VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r,
     any = any || d > 0;
   }
   if (!any) return {};
+  if (std::isfinite(level)) keepLevelCrossingLobes(buf.line, buf.value, sign, level);
   const int arg = penalisedArgmax(buf.value, half, r.stepMm, penalty);
   if (arg < 0) return {};
   // Score: the parabolic peak value. Position: the centre of mass of the lobe, exact for a partial-volume edge
@@ -270,13 +310,14 @@ VertexTarget gradientSearch(const LineSampler& sampler, const ResolvedSearch& r,
 /// ±`windowMm` of the coarse target `coarse` (penalised by distance from it as the search is from the vertex), located
 /// by its lobe's centre of mass. Returns `coarse` unchanged where the fine line has no such edge there.
 VertexTarget focusEdge(const LineSampler& fine, const VertexTarget& coarse, const ResolvedSearch& r, double sign,
-                       double penalty, double windowMm, double lobeHalfWidthMm, SearchScratch& buf) {
+                       double penalty, double windowMm, double lobeHalfWidthMm, double level, SearchScratch& buf) {
   const int half = std::max(1, static_cast<int>(std::ceil(windowMm / r.stepMm))), n = 2 * half + 1;
   buf.line.resize(static_cast<size_t>(n + 2));
   for (int i = 0; i < n + 2; ++i) buf.line[i] = fine.at(coarse.offsetMm + (i - half - 1) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
   const double scale = sign / (2 * r.stepMm);
   for (int i = 0; i < n; ++i) buf.value[i] = (buf.line[i + 2] - buf.line[i]) * scale;  // NaN if a sample is outside
+  if (std::isfinite(level)) keepLevelCrossingLobes(buf.line, buf.value, sign, level);
   const int arg = penalisedArgmax(buf.value, half, r.stepMm, penalty);
   if (arg < 0) return coarse;
   VertexTarget t = coarse;
@@ -397,6 +438,28 @@ Polarity estimatePolarity(const ImageFeatures& features, const Points& positions
   return outside / nOut > inside / nIn ? Polarity::DarkInside : Polarity::BrightInside;
 }
 
+double estimateEdgeLevel(const ImageFeatures& features, const Points& positions, const Points& normals) {
+  requireSameRows(positions, normals);
+  LineSampler sampler(features.smoothed);
+  std::vector<double> inside, outside;
+  Eigen::Vector3d n;
+  for (Eigen::Index v = 0; v < positions.rows(); ++v) {
+    if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
+    sampler.setLine(positions.row(v).transpose(), n);
+    for (int k = 1; k <= 6; ++k) {  // 0.5, 1.0, ..., 3.0 mm
+      const double in = sampler.at(-0.5 * k), out = sampler.at(0.5 * k);
+      if (std::isfinite(in)) inside.push_back(in);
+      if (std::isfinite(out)) outside.push_back(out);
+    }
+  }
+  if (inside.empty() || outside.empty()) return kNaN;
+  auto median = [](std::vector<double>& x) {
+    std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2), x.end());
+    return x[x.size() / 2];
+  };
+  return 0.5 * (median(inside) + median(outside));
+}
+
 LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
                               const TargetSearchOptions& opts, const Grid& grid) {
   requireSameRows(positions, normals);
@@ -471,11 +534,12 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
       const Eigen::Vector3d nVoxel = features.smoothed.grid.direction.transpose() * n;
       const double footprintMm = features.smoothed.grid.spacing.dot(nVoxel.cwiseAbs());
       const double lobeMm = std::max(footprintMm + 2 * features.sigmaMm, 2 * r.stepMm);
-      t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, scratch);
+      t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, opts.edgeLevel, scratch);
       if (focusing && t.score > 0) {
         fineSampler.setLine(positions.row(v).transpose(), n);
         const double fineLobeMm = std::max(footprintMm + 2 * focus->sigmaMm, 2 * r.stepMm);
-        t = focusEdge(fineSampler, t, r, sign, opts.distancePenalty, features.sigmaMm + footprintMm, fineLobeMm, scratch);
+        t = focusEdge(fineSampler, t, r, sign, opts.distancePenalty, features.sigmaMm + footprintMm, fineLobeMm,
+                      opts.edgeLevel, scratch);
       }
     }
     if (t.score > 0 && std::isfinite(t.offsetMm)) {

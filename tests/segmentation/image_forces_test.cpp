@@ -412,6 +412,49 @@ TEST(ImageForcesGradient, EdgeFocusingRemovesTheCoarseScaleShiftOfAThinShell) {
   EXPECT_EQ((same.targets - plain.targets).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// CT-like bone seen in its surroundings: bone (300) to r = 20 mm, a 4 mm muscle layer (100), then fat (−150). The
+// muscle–fat edge at r = 24 mm falls further (250) than the bone's own edge (200) and has its polarity, so from a
+// surface 2.5 mm out the strongest edge is the wrong one. The edge level, estimated where the template lies (r = 20 mm),
+// is about midway between bone and muscle: the muscle–fat edge stays below it and no longer counts.
+TEST(ImageForcesGradient, EdgeLevelIgnoresAStrongerEdgeOfAnotherBoundary) {
+  const ImageF image = makeImage({1.0, 1.0, 1.0}, {10, -5, 20}, 30, [](const Eigen::Vector3d& p) {
+    const double r = (p - kCenter).norm();
+    return r < kRadius ? 300.0 : r < kRadius + 4 ? 100.0 : -150.0;
+  });
+  const ImageFeatures f = computeImageFeatures(image, 1.0);
+  const Sphere at = makeSphere(kRadius);
+  const double level = estimateEdgeLevel(f, at.positions, at.normals);
+  // Intensities are normalised (1–99 %) to [0, 1]: bone 1, muscle ≈ 0.56, fat 0; the level sits between bone and muscle.
+  const double bone = f.sample(kCenter).value(), muscle = f.sample(kCenter + Eigen::Vector3d(kRadius + 1.5, 0, 0)).value();
+  EXPECT_GT(level, muscle + 0.1 * (bone - muscle));
+  EXPECT_LT(level, bone - 0.1 * (bone - muscle));
+  TargetSearchOptions opts;
+  opts.rangeMm = 5;
+  opts.regularisationRings = 0;
+  const Sphere out = makeSphere(kRadius + 2.5);
+  const TargetSearchResult any =
+      searchTargets(f, out.positions, out.normals, out.neighbors, opts, Polarity::BrightInside, image.grid);
+  opts.edgeLevel = level;
+  const TargetSearchResult crossing =
+      searchTargets(f, out.positions, out.normals, out.neighbors, opts, Polarity::BrightInside, image.grid);
+  ASSERT_TRUE(allFinite(crossing));
+  const RadialError without = radialError(any.targets), with = radialError(crossing.targets);
+  ::testing::Test::RecordProperty("mean_error_without_level", std::to_string(without.mean));
+  ::testing::Test::RecordProperty("mean_error_with_level", std::to_string(with.mean));
+  EXPECT_GT(without.mean, 2.5);  // the muscle–fat edge
+  EXPECT_GT(crossing.scores.minCoeff(), 0.0);
+  EXPECT_LT(std::abs(with.mean), 0.2);
+  EXPECT_LT(with.maxAbs, 0.6);
+  // From inside (r = 18 mm) both find the bone's edge: the level only removes edges, it moves none.
+  const Sphere in = makeSphere(kRadius - 2);
+  EXPECT_LT(std::abs(radialError(searchTargets(f, in.positions, in.normals, in.neighbors, opts, Polarity::BrightInside,
+                                               image.grid).targets).mean), 0.2);
+  // A level no edge crosses leaves no target.
+  opts.edgeLevel = bone + 1;
+  EXPECT_EQ(searchTargets(f, out.positions, out.normals, out.neighbors, opts, Polarity::BrightInside, image.grid)
+                .scores.maxCoeff(), 0.0);
+}
+
 TEST(ImageForcesGradient, DefaultsFollowTheVoxelSize) {
   // On a grid twice as coarse the default range doubles: an edge 6 mm away is found on 2.4 mm voxels.
   const ImageF image = makeImage({2.4, 2.4, 2.4}, {10, -5, 20}, 42, [](const Eigen::Vector3d& p) {

@@ -2,6 +2,7 @@
 /// Image forces (DESIGN-NOTES §7): per vertex, a target point searched along the normal within ±range mm, either the
 /// strongest gradient of the expected polarity or the best normalised cross-correlation with a learned intensity
 /// profile; scores regularised over mesh neighbours. The targets become independent constraints.
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -46,6 +47,9 @@ struct TargetSearchOptions {
   double distancePenalty = 0.1;  ///< score reduction per mm of displacement (relative to the best score)
   double profileHalfLengthMm = 0;  ///< half length of learned profiles; 0 → 2 × the largest voxel spacing
   int regularisationRings = 1;     ///< neighbour rings over which target offsets are smoothed (0 = none)
+  /// Gradient mode: when finite, an edge counts only if the smoothed (normalised) intensity crosses this level across
+  /// it, from the inside's side to the outside's (estimateEdgeLevel); NaN: every edge of the right polarity counts.
+  double edgeLevel = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Per-vertex intensity profiles learned on the template's initial position (Profile mode).
@@ -65,6 +69,12 @@ struct TargetSearchResult {
 
 /// Estimates the polarity from the mean intensity sampled 0.5–3 mm inside vs outside along the normals.
 Polarity estimatePolarity(const ImageFeatures& features, const Points& positions, const Points& normals);
+
+/// The object's edge level: midway between the median intensities sampled 0.5–3 mm inside and outside along the normals
+/// (the partial-volume level of its boundary). An edge that does not cross it belongs to another boundary: on CT at
+/// 3 mm, a muscle-fat edge outside a bone is as strong as the blurred cortex-muscle edge and has the same polarity, but
+/// lies wholly below the bone's level. NaN if nothing could be sampled.
+double estimateEdgeLevel(const ImageFeatures& features, const Points& positions, const Points& normals);
 
 /// Learns per-vertex profiles at the current positions (normals outward).
 LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
