@@ -28,10 +28,10 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 int cmdSegment(const std::vector<std::string>& argv) {
   Args args(argv,
             {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "range-fine", "range-coarse", "range-coarse-extra", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
+             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "refine-sigma", "range-fine", "range-coarse", "range-coarse-extra", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
              "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
              "iterations", "threads"},
-            {"help", "no-qc", "no-collisions", "edge-focusing", "axis-first"});
+            {"help", "no-qc", "no-collisions", "edge-focusing", "edge-level", "refine", "axis-first"});
   if (args.has("help")) {
     std::cout
         << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
@@ -75,6 +75,14 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
            "                                finest scale's edge next to it (a blurred thin bright shell, e.g.\n"
            "                                CT cortex at 3 mm, shows its edge ~sigma too far out); default off\n"
+           "  --edge-level                  gradient force: an edge counts only where the intensity crosses\n"
+           "                                the object's level (midway between inside and outside at the\n"
+           "                                template) -- ignores edges of neighbouring boundaries; default off\n"
+           "  --refine                      one more pass at the finest level: each converged surface becomes\n"
+           "                                its own reference shape, pulled by the gradient force with the edge\n"
+           "                                level (the image's own edges place it); default off. For bones on\n"
+           "                                CT; scene key \"refine\" per object wins (others stay fixed)\n"
+           "  --refine-sigma                image scale of that pass, x smallest spacing (default 0.5)\n"
            "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n"
            "  --muscle-target-step E        a muscle's image target is at most E local edge lengths from its vertex\n"
            "                                in a step (default 1; 0: no limit; bones are not limited)\n";
@@ -112,6 +120,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   opts.priorEnd = args.num("prior-end", opts.priorEnd);
   if (args.has("sigma-fine")) opts.sigmaFine = args.num("sigma-fine", 0.5);
   opts.sigmaCoarse = args.num("sigma-coarse", opts.sigmaCoarse);
+  opts.refineSigma = args.num("refine-sigma", opts.refineSigma);
   opts.rangeFine = args.num("range-fine", opts.rangeFine);
   opts.rangeCoarse = args.num("range-coarse", opts.rangeCoarse);
   opts.rangeCoarseExtraMm = args.num("range-coarse-extra", opts.rangeCoarseExtraMm);
@@ -123,6 +132,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
     throw ParameterError("--muscle-target-step", args.str("muscle-target-step"), "must be in [0, 1000]");
   opts.collisions = !args.has("no-collisions");
   opts.edgeFocusing = args.has("edge-focusing");
+  opts.edgeLevel = args.has("edge-level");
+  opts.refinePass = args.has("refine");
   opts.axisFirst = args.has("axis-first");
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
@@ -248,6 +259,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
         r["last_max_move_mm"] = l.lastMaxMoveMm;
         r["sigma_mm"] = l.sigmaMm;
         r["range_mm"] = l.rangeMm;
+        if (l.refinement) r["refinement"] = true;
         lv.push(r);
         totalSteps += l.steps;
       }

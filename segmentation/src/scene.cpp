@@ -24,7 +24,7 @@ const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "templat
 const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
                                              "image_force",     "medial_axis",        "radial_stiffness",
                                              "axis_spacing_mm", "axis_first",         "volumetric",
-                                             "volume_stiffness"};
+                                             "volume_stiffness", "refine"};
 const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction",
                                                      "mode",   "target",       "resolution"};
 const std::vector<std::string> kForces = {"gradient", "profile"};
@@ -178,6 +178,8 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
       check.fail(at, "\"axis_first\" is given but the object has no medial axis (set \"medial_axis\": true)");
     m.axisFirst = axisFirst;
   }
+  bool refine = false;
+  if (check.boolean(*model, "refine", at, &refine)) m.refine = refine;
 
   check.boolean(*model, "volumetric", at, &m.volumetric);
   if (check.number(*model, "volume_stiffness", Checker::Range::UnitInterval, at, &m.volumeStiffness) && !m.volumetric)

@@ -220,6 +220,9 @@ Json settingsJson(const SegmentOptions& o, const ResolvedSettings& s) {
   j["range_coarse_extra_mm"] = o.rangeCoarseExtraMm;
   j["edge_penalty_per_mm"] = o.edgePenalty;
   j["edge_focusing"] = o.edgeFocusing;
+  j["edge_level"] = o.edgeLevel;
+  j["refine_pass"] = o.refinePass;
+  j["refine_sigma_voxels"] = o.refineSigma;
   j["muscle_target_step_edges"] = o.muscleTargetStepEdges;
   j["collisions"] = o.collisions;
   j["collision_gap_mm"] = o.collisionGapMm;
@@ -331,6 +334,9 @@ struct ObjectState {
   }
   /// Whether the object runs the axis-first coarse stage (its model's "axis_first", else the run's default).
   bool runsAxisFirst(const SegmentOptions& o) const { return hasAxis() && obj->model.axisFirst.value_or(o.axisFirst); }
+  /// Whether the object takes part in the refinement pass (its model's "refine", else the run's).
+  bool refines(const SegmentOptions& o) const { return obj->model.refine.value_or(o.refinePass); }
+  Points axisEnd;  ///< axis particles where the last pass left them (a refinement pass's fixed objects keep them)
   /// Number of axis particles at the current level (0 without an axis).
   int axisCount() const { return hasAxis() ? axis.curve.vertexCount() : 0; }
 };
@@ -382,11 +388,13 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   st.current = st.lv[static_cast<size_t>(rs.levels - 1)].simplex;
 }
 
-/// Moves an object to level `l` (carrying the coarser level's displacement) and builds its constraint sets.
+/// Moves an object to level `l` (carrying the coarser level's displacement) and builds its constraint sets. The
+/// refinement pass (`refine`, level 0 again) keeps the surface where it is and takes it as the reference shape, with
+/// the gradient force and the edge level estimated there.
 void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts, const ImageFeatures& feat,
-                const Grid& grid) {
+                const Grid& grid, bool refine = false) {
   const LevelMeshes& ref = st.lv[static_cast<size_t>(l)];
-  if (l != coarsest) {
+  if (l != coarsest && !refine) {
     // Carry the displacement of the coarser level's surface over to this level's template.
     const LevelMeshes& coarse = st.lv[static_cast<size_t>(l + 1)];
     const TriangleMesh moved = trianglesFromSimplex(st.current);
@@ -395,6 +403,12 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     TriangleMesh start = ref.triangles;
     start.vertices += transfer.apply(disp);
     st.current = simplexFromTriangles(start);
+  }
+  st.search.mode = refine ? TargetMode::Gradient : st.obj->hasForce ? st.obj->force : st.obj->model.imageForce;
+  st.search.edgeLevel = std::numeric_limits<double>::quiet_NaN();
+  if (st.search.mode == TargetMode::Gradient && (opts.edgeLevel || refine)) {
+    const SimplexMesh& at = refine ? st.current : ref.simplex;
+    st.search.edgeLevel = estimateEdgeLevel(feat, at.positions, simplexVertexNormals(at));
   }
   if (st.search.mode == TargetMode::Profile) {
     // Learned where the template came from (e.g. the mirrored contralateral structure) when the scene says so.
@@ -408,7 +422,10 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   // global prior, axis and radii): the straight template's similarity prior would otherwise pull the bend back out.
   const SimplexMesh* shape = &ref.simplex;
   SimplexMesh bentShape;
-  if (st.stageAxis.rows() > 0) {
+  if (refine) {
+    bentShape = st.current;
+    shape = &bentShape;
+  } else if (st.stageAxis.rows() > 0) {
     bentShape = ref.simplex;
     bentShape.positions = st.bentByStage(ref.simplex.positions);
     shape = &bentShape;
@@ -430,8 +447,8 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     // where the best similarity fit of the template onto the current surface puts it.
     MedialAxisOptions mo;
     mo.spacingMm = model.axisSpacingMm > 0 ? model.axisSpacingMm : opts.axisSpacingMm;
-    st.axis = buildMedialAxis(ref.triangles, mo);
-    if (shape != &ref.simplex) st.axis.curve.positions = st.bentByStage(st.axis.curve.positions);
+    st.axis = buildMedialAxis(refine ? trianglesFromSimplex(st.current) : ref.triangles, mo);
+    if (shape != &ref.simplex && !refine) st.axis.curve.positions = st.bentByStage(st.axis.curve.positions);
     st.attachment = attachToAxis(shape->positions, st.axis.curve.positions);
     const Eigen::Matrix4d fit = fitTransform(shape->positions, st.current.positions,
                                              Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Similarity);
@@ -442,11 +459,15 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   st.volumeHold.reset();
   if (st.volume && l == 0) {
     // Tet vertices start where the best affine fit of the template surface onto the current one puts them.
+    // The refinement pass starts them where the finest level left them.
     const int nt = st.volume->tetCount();
     const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
                                              Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
-    st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
-                  fit.topRightCorner<3, 1>().transpose();
+    if (refine)
+      st.volStart = st.volFinal;
+    else
+      st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
+                    fit.topRightCorner<3, 1>().transpose();
     const double gamma = model.volumeStiffness >= 0 ? model.volumeStiffness : opts.volumeStiffness;
     st.volumeSet = std::make_unique<VolumeSimplexConstraints>(*st.volume, gamma, VolumeBoundary::SurfaceDriven);
     // The template's volume, held unless the image demands another (volume_preservation.h).
@@ -629,6 +650,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   if (opts.threads < 0 || opts.threads > 1024) throw ParameterError("threads", std::to_string(opts.threads), "must be 0..1024");
   validateSolverOptions(resolveSettings(opts, Grid{}).solver);  // throws on bad scheme settings
   for (auto [name, v, hi] : {std::tuple{"sigma fine", opts.sigmaFine.value_or(0.5), 10.0}, std::tuple{"sigma coarse", opts.sigmaCoarse, 10.0},
+                             std::tuple{"refine sigma", opts.refineSigma, 10.0},
                              std::tuple{"range fine", opts.rangeFine, 20.0}, std::tuple{"range coarse", opts.rangeCoarse, 20.0},
                              std::tuple{"range coarse extra mm", opts.rangeCoarseExtraMm, 1000.0},
                              std::tuple{"edge penalty", opts.edgePenalty, 10.0}})
@@ -670,11 +692,20 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   auto pairGap = [&](const CollisionPair& p) { return p.gapMm >= 0 ? p.gapMm : opts.collisionGapMm; };
   auto pairProximity = [&](const CollisionPair& p) { return p.proximityMm > 0 ? p.proximityMm : proximity; };
   auto pairFriction = [&](const CollisionPair& p) { return p.friction >= 0 ? p.friction : opts.collisionFriction; };
-  const int totalSteps = rs.levels * rs.maxStepsPerLevel;
+  // Passes: the levels, coarsest first, then the refinement pass at the finest level again if an object refines. In
+  // that pass the objects that do not refine stay where they are: their particles are fixed, their sets not built.
+  const bool anyRefines = std::any_of(objs.begin(), objs.end(), [&](const ObjectState& st) { return st.refines(opts); });
+  const int passes = rs.levels + (anyRefines ? 1 : 0);
+  const int totalSteps = passes * rs.maxStepsPerLevel;
+  const int rampSteps = rs.levels * rs.maxStepsPerLevel;  // the prior's ramp spans the levels; refinement is at its end
   int stepsDone = 0;
-  for (int l = coarsest; l >= 0; --l) {
+  for (int pass = 0; pass < passes; ++pass) {
+    const bool refine = pass == rs.levels;
+    const int l = refine ? 0 : coarsest - pass;
     const int order = coarsest - l;  // 0 for the coarsest level
-    const ImageFeatures& feat = features.at(rs.sigmaMm[order]);
+    auto fixed = [&](const ObjectState& st) { return refine && !st.refines(opts); };
+    const double sigmaMm = refine ? opts.refineSigma * image.grid.spacing.minCoeff() : rs.sigmaMm[order];
+    const ImageFeatures& feat = features.at(sigmaMm);
     const ImageFeatures* focus = opts.edgeFocusing && order + 1 < rs.levels ? &features.at(rs.sigmaMm.back()) : nullptr;
     int n = 0;
     for (auto& st : objs) {
@@ -682,7 +713,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       n += st.tetCount(l);
       st.first = n;
       st.search.rangeMm = rs.rangeMm[order];
-      enterLevel(st, l, coarsest, opts, feat, image.grid);
+      if (!fixed(st)) enterLevel(st, l, coarsest, opts, feat, image.grid, refine);
       n += st.current.vertexCount();
     }
     // Medial-axis particles follow all the surfaces.
@@ -690,11 +721,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       if (st.hasAxis()) {
         st.axisFirst = n;
         n += st.axisCount();
-        buildAxisSets(st, opts);
-        if (l == coarsest) ++res.medialAxesBuilt;
+        if (!fixed(st)) buildAxisSets(st, opts);
+        if (pass == 0) ++res.medialAxesBuilt;
       }
     // The axis-first coarse stage, for the objects that ask for it, before the coarsest level's full evolution.
-    if (l == coarsest)
+    if (pass == 0)
       for (auto& st : objs)
         if (st.runsAxisFirst(opts)) {
           const auto ta = Clock::now();
@@ -705,17 +736,18 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
           res.settings.axisFirst.back().seconds = since(ta);
           res.secondsPerStage["axis-first"] += res.settings.axisFirst.back().seconds;
         }
-    if (l == coarsest)
+    if (pass == 0)
       for (const auto& st : objs) res.volumeModelsBuilt += st.volume ? 1 : 0;
     Points x(n, 3);
     for (const auto& st : objs) {
       x.middleRows(st.first, st.current.vertexCount()) = st.current.positions;
-      if (st.hasAxis()) x.middleRows(st.axisFirst, st.axisCount()) = st.axisStart;
-      if (st.volumeSet) x.middleRows(st.volFirst, st.tetCount(l)) = st.volStart;
+      if (st.hasAxis()) x.middleRows(st.axisFirst, st.axisCount()) = fixed(st) ? st.axisEnd : st.axisStart;
+      if (st.volumeSet) x.middleRows(st.volFirst, st.tetCount(l)) = fixed(st) ? st.volFinal : st.volStart;
     }
     std::vector<ConstraintSet*> sets;
     for (auto& st : objs)
-      for (ConstraintSet* c : st.sets()) sets.push_back(c);
+      if (!fixed(st))
+        for (ConstraintSet* c : st.sets()) sets.push_back(c);
     // Bones are heavier, so a contact moves the muscle more than the bone (masses only matter for shared corrections:
     // image targets and shape memory do not depend on a uniform mass scale). An axis carries the mass of its surface.
     Eigen::VectorXd invMass = Eigen::VectorXd::Ones(n);
@@ -727,6 +759,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       if (st.hasAxis())
         invMass.segment(st.axisFirst, st.axisCount()) =
             axisInverseMass(st.attachment, st.axisCount(), invMass.segment(st.first, st.current.vertexCount()));
+      if (fixed(st)) {
+        invMass.segment(st.volFirst, st.tetCount(l)).setZero();
+        invMass.segment(st.first, st.current.vertexCount()).setZero();
+        if (st.hasAxis()) invMass.segment(st.axisFirst, st.axisCount()).setZero();
+      }
     }
     // Collision sets, only for declared pairs: each direction is A's vertices against B's surface (fan triangles of
     // B's simplex faces, whose corners are B's particles). Projected last in a step, so contacts have the last word.
@@ -773,11 +810,13 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     Solver solver(rs.solver);
     solver.prepare(x, invMass);
     LevelReport rep;
-    rep.sigmaMm = rs.sigmaMm[order];
+    rep.sigmaMm = sigmaMm;
     rep.rangeMm = rs.rangeMm[order];
+    rep.refinement = refine;
     for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
-      const double runFraction = static_cast<double>(stepsDone) / std::max(1, totalSteps - 1);
+      const double runFraction = std::min(1.0, static_cast<double>(stepsDone) / std::max(1, rampSteps - 1));
       for (auto& st : objs) {
+        if (fixed(st)) continue;
         if (st.prior) st.prior->setLambda(opts.priorStart + (opts.priorEnd - opts.priorStart) * runFraction);
         st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
         const ImageTargets found = imageTargets(st, st.current, opts, feat, image.grid, focus);
@@ -798,14 +837,14 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       ++stepsDone;
       if (progress)
         progress(std::min(1.0, static_cast<double>(stepsDone) / totalSteps),
-                 "level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels));
+                 refine ? std::string("refinement") : "level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels));
       if (rep.lastMaxMoveMm < rs.toleranceMm) {
         rep.converged = true;
         break;
       }
     }
-    stepsDone = (order + 1) * rs.maxStepsPerLevel;
-    if (l == 0 && !collide.empty()) {
+    stepsDone = (pass + 1) * rs.maxStepsPerLevel;
+    if (pass + 1 == passes && !collide.empty()) {
       // Clean-up: collision-only sweeps on the final positions, so no vertex is left inside a partner. They are
       // position corrections with each pair's target whatever its mode (the seed's robust practice: position first),
       // sequential pairs one set after the other, then the global pairs solved together.
@@ -830,7 +869,9 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       collisionDetectSeconds += since(tc);
     }
     for (auto& st : objs) {
+      if (fixed(st)) continue;
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
+      if (st.hasAxis()) st.axisEnd = solver.positions().middleRows(st.axisFirst, st.axisCount());
       if (st.volumeSet) st.volFinal = solver.positions().middleRows(st.volFirst, st.tetCount(l));
       // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
       const Points& refP = st.lv[static_cast<size_t>(l)].simplex.positions;

@@ -34,12 +34,14 @@ msk::SceneObject mirroredBone(const msk::LabelMap& labels, const char* name, int
   return o;
 }
 
-/// The run's options: the global prior ends at λ = 0.2 and the finest search reaches ± 1 voxel (measured on the
-/// femur alone: defaults 0.884, λ_end 0.2 0.892, both 0.896).
-msk::SegmentOptions femurOptions() {
+/// The run's options: the global prior ends at λ = 0.2, the finest search reaches ± 1 voxel (measured on the femur
+/// alone: defaults 0.884, λ_end 0.2 0.892, both 0.896), and the refinement pass finishes the bone on the CT's own
+/// edges (segmenter.h, SegmentOptions::refinePass).
+msk::SegmentOptions femurOptions(bool refine = true) {
   msk::SegmentOptions opts;
   opts.priorEnd = 0.2;
   opts.rangeFine = 1.0;
+  opts.refinePass = refine;
   return opts;
 }
 }  // namespace
@@ -54,20 +56,25 @@ TEST(RealCtFemur, MirroredContralateralTemplate) {
   msk::Scene scene;
   scene.objects.push_back(mirroredBone(labels, "femur_right", 76, 75, midX));
   const msk::SegmentationResult res = msk::segmentScene(ct, scene, femurOptions());
+  const msk::SegmentationResult unrefined = msk::segmentScene(ct, scene, femurOptions(false));
 
   msk::LabelMap start(ct.grid, 0);
   msk::rasterizeInto(start, scene.objects[0].templ, 76);
   const msk::SegmentationMetrics before = msk::labelMetrics(start, 76, labels, 76);
   const msk::SegmentationMetrics after = msk::labelMetrics(res.labels, 76, labels, 76);
+  const msk::SegmentationMetrics without = msk::labelMetrics(unrefined.labels, 76, labels, 76);
   std::printf("mid-sagittal x = %.2f mm; mirrored template: Dice %.4f ASSD %.2f mm -> segmented: Dice %.4f ASSD %.2f "
-              "mm HD95 %.2f mm (%.2f s)\n",
-              midX, before.dice, before.assd, after.dice, after.assd, after.hd95, res.seconds);
-  // Issue 3 asks Dice ≥ 0.90: not met (measured 0.896, ASSD 1.71 mm; gradient force 0.865, 0.874 with no target
-  // where a search line leaves the image). Most of the rest is the shaft: the mirrored left femur is about one voxel
-  // layer wider than this side's label in every shaft slice (70 extra voxels per slice) and the surface keeps about
-  // 55 of them. Guard the level reached.
-  EXPECT_GT(after.dice, 0.89);
-  EXPECT_GT(after.dice, before.dice + 0.08);
+              "mm HD95 %.2f mm (%.2f s); without the refinement pass: Dice %.4f ASSD %.2f mm\n",
+              midX, before.dice, before.assd, after.dice, after.assd, after.hd95, res.seconds, without.dice,
+              without.assd);
+  // Issue 3: Dice ≥ 0.90. Measured 0.913 (ASSD 1.40 mm); 0.896 (1.71 mm) without the refinement pass. The profiles,
+  // learned on the left femur, carry its label's boundary, which lies about one voxel out on the shaft (the mirrored
+  // left label is one voxel layer wider in every shaft slice); the pass puts the surface on this side's own edge,
+  // where the intensity crosses the bone's level (the muscle–fat edge just outside the shaft, as strong as the
+  // blurred cortex's at 3 mm, does not count).
+  EXPECT_GE(after.dice, 0.90);
+  EXPECT_GT(after.dice, without.dice);
+  EXPECT_GT(after.dice, before.dice + 0.1);
   EXPECT_LT(after.assd, before.assd);
 }
 
@@ -96,8 +103,8 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
   std::printf("overlap voxels %zu, deepest penetration %.2f mm, %.1f s\n", res.overlapVoxels, res.pairPenetrationMm[0],
               res.seconds);
   const msk::SegmentationMetrics femur = msk::labelMetrics(res.labels, 76, labels, 76);
-  // Issue 3's 0.90 is not met here either (measured 0.897; hip bone 0.951, no overlap): guard the level reached.
-  EXPECT_GT(femur.dice, 0.89);
+  // Issue 3's 0.90 with a partner: measured 0.913 (0.897 without the refinement pass); hip bone 0.950, no overlap.
+  EXPECT_GE(femur.dice, 0.90);
   EXPECT_GT(msk::labelMetrics(res.labels, 78, labels, 78).dice, 0.93);
   EXPECT_EQ(res.overlapVoxels, 0u);
 }

@@ -243,21 +243,24 @@ TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
 
 // Issue 4: each Dice ≥ 0.88 and no overlap. Every object uses the profile force learned on the contralateral
 // structure (the crop holds both sides), the global prior ends at λ = 0.2, the finest search reaches ± 1 voxel on an
-// image smoothed at σ = 1 voxel. Measured: femur 0.763 → 0.895, hip bone 0.847 → 0.947, gluteus maximus 0.731 →
-// 0.886, gluteus medius 0.770 → 0.860, no overlap. The gluteus medius is short of 0.88 (it reaches 0.855–0.863 from
+// image smoothed at σ = 1 voxel; the two bones then take the refinement pass (SegmentOptions::refinePass; it costs the
+// muscles, whose edges on this CT are not the labelled boundary, so they stay fixed in it). Measured: femur 0.763 →
+// 0.915 (0.896 without the pass), hip bone 0.847 → 0.948 (0.947), gluteus maximus 0.731 → 0.892, gluteus medius
+// 0.770 → 0.859, no overlap. The gluteus medius is short of 0.88 (it reaches 0.855–0.863 from
 // every start and option tried, 0.859 from the undisplaced mirror, whose own Dice is 0.792: this side's muscle is
 // shaped differently and its boundary with the gluteus minimus is faint); guard its level.
 TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
-  const RealScene rs = ctScene(data);
+  RealScene rs = ctScene(data);
+  rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // the bones
   msk::SegmentOptions opts;
   opts.priorEnd = 0.2;
   opts.rangeFine = 1.0;
   opts.sigmaFine = 1.0;
   const SceneScore sc = runScene(rs, opts);
   printScore("totalseg-ct: right femur, hip bone, gluteus maximus and medius", rs, sc);
-  const double guard[] = {0.88, 0.88, 0.88, 0.85};
+  const double guard[] = {0.90, 0.93, 0.88, 0.85};
   for (size_t i = 0; i < sc.objects.size(); ++i) {
     EXPECT_GE(sc.objects[i].after.dice, guard[i]) << sc.objects[i].name;
     EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice + 0.05) << sc.objects[i].name;

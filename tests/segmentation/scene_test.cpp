@@ -663,3 +663,22 @@ TEST(Scene, AxisFirstNeedsAMedialAxisAndNamesTheKeyAndTheObject) {
   expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": true, "axis_frist": true})"), "typo.json"),
                    {"objects[0] (femur) model: unknown key \"axis_frist\"", "axis_first"});
 }
+
+// "refine" (the refinement pass): read as given, unset otherwise (the run's default); not a boolean is an error naming
+// the key and the object.
+TEST(Scene, RefineIsReadPerObject) {
+  SceneFiles f;
+  const std::string text = R"({"objects": [
+      {"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk", "model": {"refine": true}},
+      {"name": "quad", "label": 2, "kind": "muscle", "template": "b.vtk", "model": {"refine": false}},
+      {"name": "ham", "label": 3, "kind": "muscle", "template": "b.vtk"}]})";
+  const msk::Scene s = msk::loadScene(f.scene(text));
+  ASSERT_EQ(s.objects.size(), 3u);
+  ASSERT_TRUE(s.objects[0].model.refine.has_value());
+  EXPECT_TRUE(*s.objects[0].model.refine);
+  ASSERT_TRUE(s.objects[1].model.refine.has_value());
+  EXPECT_FALSE(*s.objects[1].model.refine);
+  EXPECT_FALSE(s.objects[2].model.refine.has_value());
+  expectSceneError(f.scene(twoObjects(R"(, "model": {"refine": 1})"), "not_bool.json"),
+                   {"objects[0] (femur) model: \"refine\" must be true or false, found number"});
+}

@@ -265,3 +265,41 @@ TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   for (size_t i = 0; i < 2; ++i) EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ(a.overlapVoxels, b.overlapVoxels);
 }
+
+// The refinement pass (object model "refine"): a template whose shape differs from the object's (an ellipsoid for a
+// ball) keeps part of its shape through the levels (shape memory and prior hold it); the refinement pass takes the
+// converged surface as the reference and the image's own edges finish it. An object that does not refine stays
+// exactly where the levels left it.
+TEST(Segmenter, RefinementPassFinishesTheRefiningObjectAndLeavesTheOthers) {
+  const msk::Grid g = cubeGrid(1.0, 36);
+  const Eigen::Vector3d ca(-18, 0, 0), cb(18, 0, 0);
+  const double r = 12.0;
+  const msk::ImageF img = msk::test::partialVolumeImage(
+      g, [&](const Eigen::Vector3d& x) { return (x - ca).norm() <= r || (x - cb).norm() <= r; }, 900.f, 100.f);
+  msk::Scene scene = oneObjectScene(msk::makeIcosphere(1.0, 3, Eigen::Vector3d::Zero()));
+  msk::TriangleMesh& ellipsoid = scene.objects[0].templ;
+  for (int i = 0; i < ellipsoid.vertexCount(); ++i)
+    ellipsoid.vertices.row(i) = ellipsoid.vertices.row(i).cwiseProduct(Eigen::RowVector3d(15, 10, 11)) + ca.transpose();
+  msk::SceneObject other = scene.objects[0];
+  other.name = "other";
+  other.label = 2;
+  other.templ = msk::makeIcosphere(14.0, 3, cb);
+  scene.objects.push_back(other);
+  const msk::SegmentOptions opts;
+  const msk::SegmentationResult plain = msk::segmentScene(img, scene, opts);
+  scene.objects[0].model.refine = true;
+  const msk::SegmentationResult refined = msk::segmentScene(img, scene, opts);
+  double maxPlain = 0, maxRefined = 0;
+  const double errPlain = meanRadialError(plain.objects[0].mesh, ca, r, &maxPlain);
+  const double errRefined = meanRadialError(refined.objects[0].mesh, ca, r, &maxRefined);
+  std::printf("ellipsoid template on a ball: mean |r - 12| %.3f mm (max %.3f) -> with the refinement pass %.3f mm "
+              "(max %.3f)\n", errPlain, maxPlain, errRefined, maxRefined);
+  EXPECT_LT(errRefined, 0.5 * errPlain);
+  EXPECT_LT(maxRefined, maxPlain);
+  ASSERT_EQ(refined.objects[0].levels.size(), plain.objects[0].levels.size() + 1);
+  EXPECT_TRUE(refined.objects[0].levels.back().refinement);
+  EXPECT_FALSE(plain.objects[0].levels.back().refinement);
+  // The other object: not refined, not moved.
+  EXPECT_EQ(refined.objects[1].levels.size(), plain.objects[1].levels.size());
+  EXPECT_EQ((refined.objects[1].mesh.vertices - plain.objects[1].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
+}

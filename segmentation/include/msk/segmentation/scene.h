@@ -36,6 +36,9 @@ struct ObjectModel {
   /// "axis_first": run the axis-first coarse stage (the object moves as a generalised cylinder of its axis before its
   /// full-surface evolution; needs "medial_axis"); unset = the run's (SegmentOptions::axisFirst)
   std::optional<bool> axisFirst;
+  /// "refine": the object takes part in the refinement pass (SegmentOptions::refinePass: its converged surface as its
+  /// reference shape, the gradient force with the edge level); unset = the run's
+  std::optional<bool> refine;
   bool volumetric = false;        ///< "volumetric": a coupled 3-simplex volume model
   double volumeStiffness = -1;    ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
 };

@@ -58,6 +58,20 @@ struct SegmentOptions {
   /// finest scale's edge next to it (edge focusing, see searchTargets()); off by default: it helps a thin bright
   /// shell seen coarsely (CT cortex at 3 mm) but costs the phantom femurs (solid bone) 0.001–0.003 Dice.
   bool edgeFocusing = false;
+  /// Gradient force: an edge counts only where the intensity crosses the object's edge level (estimateEdgeLevel(), at
+  /// each level's scale and the template's position), so edges of other boundaries with the same polarity are ignored.
+  bool edgeLevel = false;
+  /// One more pass at the finest level once the levels are done (refinement): every object's converged surface becomes
+  /// its reference shape (shape memory, global prior, medial axis), and its force the gradient with the edge level
+  /// estimated there. The run's force and template decide where the object is; its image's own edges where its
+  /// surface lies. For objects whose profiles are learned elsewhere (mirrored contralateral side) or whose template's
+  /// shape differs from the subject's. The scene's per-object "refine" wins; objects that do not refine stay where the
+  /// levels left them (fixed, still collision partners). Made for bones on CT, whose edge is the image's strongest;
+  /// on a blurry MRI the steepest muscle–fat gradient lies off the labelled boundary and the pass costs muscles.
+  bool refinePass = false;
+  /// Image scale of the refinement pass, × the smallest spacing (the edges it settles on are the finest it sees;
+  /// independent of the run's finest σ, which multi-object scenes raise for their muscles).
+  double refineSigma = 0.5;
   /// > 0: a muscle's image target lies at most this many local edge lengths (mean distance to the vertex's three
   /// neighbours) from its vertex in a step (0 = no limit). Targets at interfaces a muscle cannot reach (a partner, a
   /// missing septum) otherwise pull at full length step after step and the surface buckles between them. Bones are
@@ -135,6 +149,7 @@ struct LevelReport {
   double lastMaxMoveMm = 0; ///< largest displacement in the last step
   bool converged = false;   ///< stopped on tolerance (not on the step cap)
   double sigmaMm = 0, rangeMm = 0;
+  bool refinement = false;  ///< the refinement pass (SegmentOptions::refinePass) rather than a level
 };
 
 /// The result for one object.
