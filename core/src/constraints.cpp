@@ -94,6 +94,32 @@ inline bool internalSplit(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3],
   return true;
 }
 
+/// The smoothing mode's target (ε̃ = ⅓, h̃ = the neighbourhood mean `hOverR` of the scale-free heights) with the
+/// component along the neighbours' normal taken a quarter of the way. The full step is not consistent: moving P along
+/// the normal also moves each neighbour's height, which the mean fed back, and on the alternating mode of the
+/// 3-regular mesh (every vertex up by δ, its neighbours down by δ) the full step maps δ to −3δ, a growth by 3 per
+/// sweep (a resting 10 mm sphere reached 83 mm in 30 sweeps). A quarter (1 / (1 + 3 neighbours)) maps that mode to
+/// 0, a lone bump δ to ⅔δ, and leaves smooth shapes (target ≈ P) as they are. False if the neighbours are degenerate.
+inline bool smoothingTarget(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], double hOverR,
+                            Eigen::Vector3d& target) {
+  double r = 0;
+  Eigen::Vector3d n;
+  if (!triangleFrame(pi[0], pi[1], pi[2], r, n)) return false;
+  const Eigen::Vector3d full = (pi[0] + pi[1] + pi[2]) / 3.0 + hOverR * r * n;
+  const Eigen::Vector3d d = full - p;
+  target = p + d - 0.75 * d.dot(n) * n;
+  return target.allFinite();
+}
+
+/// The smoothing mode's split: the reactions are ε̃ = ⅓ (the constraint's gradient; linear momentum conserved). Its
+/// corrections are mostly tangential, where method 2's torque-free split does not exist (Σλ' → 0) and its clamped
+/// stand-in drove a resting sphere outward over sweeps (10 → 15 mm in 2000 at γ = 0.3).
+inline bool smoothingSplit(double w, const double wi[3], Eigen::Vector3d& lambda, double& denom) {
+  lambda.setConstant(1.0 / 3.0);
+  denom = w + (wi[0] + wi[1] + wi[2]) / 9.0;
+  return denom > 0 && std::isfinite(denom);
+}
+
 /// simplexInternalCorrection(), inline for the sweeps (as shapeTarget()).
 inline bool internalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
                                double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
@@ -205,17 +231,27 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
       epsCopy[2] = eps_(v, 2);
       eps = epsCopy;
     }
-    const double hr = mode_ == InternalMode::Smoothing ? smoothH[v] : hOverR_[v];
-    Eigen::Vector3d target;
-    if (!shapeTarget(pi, eps, hr, target)) {
-      ++skipped_;
-      continue;
-    }
     const double wi[3] = {w[i0], w[i1], w[i2]};
     Eigen::Vector3d dp, dpi[3];
-    if (!internalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi, nullptr)) {
-      ++skipped_;
-      continue;
+    if (mode_ == InternalMode::Smoothing) {
+      const Eigen::Vector3d pv = p.row(v).transpose();
+      Eigen::Vector3d target, lambda;
+      double denom = 0;
+      if (!smoothingTarget(pv, pi, smoothH[v], target) || !smoothingSplit(w[v], wi, lambda, denom)) {
+        ++skipped_;
+        continue;
+      }
+      const Eigen::Vector3d d = target - pv;
+      const double mbar = gamma_ / denom;
+      dp = (w[v] * mbar) * d;
+      for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
+    } else {
+      Eigen::Vector3d target;
+      if (!shapeTarget(pi, eps, hOverR_[v], target) ||
+          !internalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi, nullptr)) {
+        ++skipped_;
+        continue;
+      }
     }
     p.row(v) += dp.transpose();
     p.row(i0) += dpi[0].transpose();
@@ -244,15 +280,18 @@ bool SimplexInternalConstraints::row(int r, const Points& pAll, const Eigen::Vec
   double eps[3] = {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
   if (mode_ == InternalMode::ShapeMemory)
     for (int i = 0; i < 3; ++i) eps[i] = eps_(r, i);
-  const double hr = mode_ == InternalMode::Smoothing ? rowHeights_[r] : hOverR_[r];
+  const bool smoothing = mode_ == InternalMode::Smoothing;
   Eigen::Vector3d target;
-  if (!simplexShapeTarget(pi, eps, hr, target)) return false;
+  if (smoothing ? !smoothingTarget(p, pi, rowHeights_[r], target) : !simplexShapeTarget(pi, eps, hOverR_[r], target))
+    return false;
   const double wi[3] = {wAll[idx[1]], wAll[idx[2]], wAll[idx[3]]};
   const Eigen::Vector3d d = target - p;
   Eigen::Vector3d lambda;
   double denom = 0;
   bool split = false;
-  if (!internalSplit(p, pi, d, wAll[idx[0]], wi, eps, lambda, denom, split)) return false;
+  if (smoothing ? !smoothingSplit(wAll[idx[0]], wi, lambda, denom)
+                : !internalSplit(p, pi, d, wAll[idx[0]], wi, eps, lambda, denom, split))
+    return false;
   out.count = 4;
   out.c = -d;  // C = P − P̃
   out.gamma = gamma_;

@@ -143,7 +143,9 @@ class ConstraintSet {
 /// How the 2-simplex internal constraint chooses its target.
 enum class InternalMode {
   ShapeMemory,  ///< ε̃, h̃ of the template (scale-free), the default
-  Smoothing     ///< ε̃ = 1/3, h̃ = mean of the neighbours' current scale-free heights
+  /// ε̃ = 1/3, h̃ = mean of the neighbours' current scale-free heights; the step along the normal is a quarter of the
+  /// way (the consistent step: P's own move changes its neighbours' heights) and the reactions are ε̃
+  Smoothing
 };
 
 /// Reference metric parameters of every vertex of a 2-simplex mesh (DESIGN-NOTES §2, method 2): ε̃ (#V×3, barycentric
