@@ -49,6 +49,17 @@ void expectSceneError(const std::string& path, const std::vector<std::string>& p
   }
 }
 
+// Expects the three objects of `s` to read a per-object boolean model key (`key` picks it) as true, false and unset.
+void expectTrueFalseUnset(const msk::Scene& s, const std::function<std::optional<bool>(const msk::ObjectModel&)>& key) {
+  ASSERT_EQ(s.objects.size(), 3u);
+  const std::optional<bool> a = key(s.objects[0].model), b = key(s.objects[1].model), c = key(s.objects[2].model);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_TRUE(*a);
+  ASSERT_TRUE(b.has_value());
+  EXPECT_FALSE(*b);
+  EXPECT_FALSE(c.has_value());
+}
+
 // Two valid objects with a collision pair; `extra` is spliced into the first object.
 std::string twoObjects(const std::string& extra = "", const std::string& collisions = R"([["femur", "quadriceps"]])") {
   return R"({"objects": [
@@ -644,13 +655,7 @@ TEST(Scene, AxisFirstNeedsAMedialAxisAndNamesTheKeyAndTheObject) {
       {"name": "ham", "label": 2, "kind": "muscle", "template": "b.vtk",
        "model": {"medial_axis": true, "axis_first": false}},
       {"name": "add", "label": 3, "kind": "muscle", "template": "b.vtk", "model": {"medial_axis": true}}]})";
-  const msk::Scene s = msk::loadScene(f.scene(text));
-  ASSERT_EQ(s.objects.size(), 3u);
-  ASSERT_TRUE(s.objects[0].model.axisFirst.has_value());
-  EXPECT_TRUE(*s.objects[0].model.axisFirst);
-  ASSERT_TRUE(s.objects[1].model.axisFirst.has_value());
-  EXPECT_FALSE(*s.objects[1].model.axisFirst);
-  EXPECT_FALSE(s.objects[2].model.axisFirst.has_value());
+  expectTrueFalseUnset(msk::loadScene(f.scene(text)), [](const msk::ObjectModel& m) { return m.axisFirst; });
 
   const std::string m = R"(, "model": )";
   expectSceneError(f.scene(twoObjects(m + R"({"axis_first": true})"), "no_axis.json"),
@@ -672,13 +677,7 @@ TEST(Scene, RefineIsReadPerObject) {
       {"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk", "model": {"refine": true}},
       {"name": "quad", "label": 2, "kind": "muscle", "template": "b.vtk", "model": {"refine": false}},
       {"name": "ham", "label": 3, "kind": "muscle", "template": "b.vtk"}]})";
-  const msk::Scene s = msk::loadScene(f.scene(text));
-  ASSERT_EQ(s.objects.size(), 3u);
-  ASSERT_TRUE(s.objects[0].model.refine.has_value());
-  EXPECT_TRUE(*s.objects[0].model.refine);
-  ASSERT_TRUE(s.objects[1].model.refine.has_value());
-  EXPECT_FALSE(*s.objects[1].model.refine);
-  EXPECT_FALSE(s.objects[2].model.refine.has_value());
+  expectTrueFalseUnset(msk::loadScene(f.scene(text)), [](const msk::ObjectModel& m) { return m.refine; });
   expectSceneError(f.scene(twoObjects(R"(, "model": {"refine": 1})"), "not_bool.json"),
                    {"objects[0] (femur) model: \"refine\" must be true or false, found number"});
 }
