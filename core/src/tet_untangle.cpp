@@ -327,4 +327,19 @@ double improveTetShapes(TetMesh& mesh, const std::vector<char>& movable, int swe
   return nt ? tetShapeQualities(mesh).minCoeff() : 0.0;
 }
 
+double improveWorstTetShapes(TetMesh& mesh, double below, int sweeps) {
+  if (std::isnan(below)) throw ParameterError("shape quality threshold", "NaN", "must be a number");
+  const Eigen::VectorXd q = tetShapeQualities(mesh);
+  const std::vector<char> onBoundary = boundaryNodeMask(mesh);
+  std::vector<char> movable(onBoundary.size(), 0);
+  for (int t = 0; t < mesh.tetCount(); ++t) {
+    if (!(q[t] < below)) continue;
+    for (int k = 0; k < 4; ++k) {
+      const auto v = static_cast<size_t>(mesh.tets(t, k));
+      movable[v] = !onBoundary[v];
+    }
+  }
+  return improveTetShapes(mesh, movable, sweeps);
+}
+
 }  // namespace msk

@@ -605,6 +605,9 @@ void finishObject(ObjectState& st) {
     Eigen::VectorXd restVolumes = tetVolumes(rest);
     restVolumes = restVolumes.cwiseMax(1e-3 * std::fabs(restVolumes.mean()));
     untangleTetMesh(out.volumeMesh, restVolumes, 0.1 * meanEdgeLength(out.mesh));
+    // Then the interior nodes of badly shaped tets moved to better their shape (the worst tets left have a thin
+    // boundary face, which no interior node can fix).
+    improveWorstTetShapes(out.volumeMesh, 0.3);
     out.volumeModelMm3 = totalVolume(out.volumeMesh);
     const Eigen::VectorXd vols = tetVolumes(out.volumeMesh);
     out.invertedTets = static_cast<int>((vols.array() <= 0).count());

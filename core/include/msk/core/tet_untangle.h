@@ -67,8 +67,14 @@ TetMeshUntangleReport untangleTetMesh(TetMesh& mesh, const Eigen::VectorXd& refe
 /// `sweeps`), to raise the smallest shape quality q = 6√2 V / l_rms³ of its tets (1 for a regular tet, 0 flat, < 0
 /// inverted; l_rms the root mean square edge length) by a compass search (steps along ±x, ±y, ±z from a quarter of the
 /// mean edge at the node, halved down to 1e-3 of it); a move is kept only if it raises that smallest quality. Returns
-/// the smallest quality over the whole mesh at the end. Throws ParameterError if `movable` has not #N entries.
+/// the smallest quality over the whole mesh at the end (a node whose tets are all positive keeps them so). Throws
+/// ParameterError if `movable` has not #N entries.
 double improveTetShapes(TetMesh& mesh, const std::vector<char>& movable, int sweeps = 5);
+
+/// improveTetShapes() where it is needed: on the interior nodes (off the boundary faces) of the tets whose shape
+/// quality is under `below` (dimensionless, 0..1); the boundary stays, so does the total volume, and a node whose tets
+/// are all positive keeps them so. Returns the smallest quality at the end. Throws ParameterError if `below` is NaN.
+double improveWorstTetShapes(TetMesh& mesh, double below = 0.3, int sweeps = 5);
 
 /// Shape quality 6√2 V / l_rms³ of every tet, #T (1 regular, 0 flat, negative inverted).
 Eigen::VectorXd tetShapeQualities(const TetMesh& mesh);
