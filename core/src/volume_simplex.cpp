@@ -297,7 +297,21 @@ Points volumeSimplexResiduals(const VolumeSimplexMesh& vm, const Points& p) {
 }
 
 TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p) {
+  return tetsFromVolumeSimplex(vm, p, Eigen::VectorXi(), Points(0, 3));
+}
+
+TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p, const Eigen::VectorXi& fixedNodes,
+                              const Points& fixedPositions) {
   const int nt = vm.tetCount(), nb = vm.ghostCount(), nn = vm.nodeCount;
+  if (fixedPositions.rows() != fixedNodes.size())
+    throw ParameterError("fixed node positions", str(fixedPositions.rows()),
+                         "need one row per fixed node (" + str(fixedNodes.size()) + ")");
+  std::vector<char> fixed(static_cast<size_t>(nn), 0);
+  for (Eigen::Index i = 0; i < fixedNodes.size(); ++i) {
+    if (fixedNodes[i] < 0 || fixedNodes[i] >= nn)
+      throw ParameterError("fixed node", str(fixedNodes[i]), "must index a node (< " + str(nn) + ")");
+    fixed[static_cast<size_t>(fixedNodes[i])] = 1;
+  }
   MSK_ASSERT(p.rows() == nt + nb,
              "tetsFromVolumeSimplex: " + str(p.rows()) + " positions for " + str(nt + nb) + " vertices");
   // A: one row per simplex vertex, the mean of its primal nodes (4 for a tet, 3 for a boundary face).
@@ -324,14 +338,50 @@ TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p) {
 
   Eigen::SparseMatrix<double> ata = a.transpose() * a;
   const double mu = 1e-6 * ata.diagonal().sum() / std::max(nn, 1);
-  for (int i = 0; i < nn; ++i) ata.coeffRef(i, i) += count[i] > 0 ? mu : 1.0;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(ata);
-  MSK_ASSERT(solver.info() == Eigen::Success, "tetsFromVolumeSimplex: factorisation failed");
   Eigen::MatrixXd rhs = a.transpose() * Eigen::MatrixXd(p);
-  for (int i = 0; i < nn; ++i) rhs.row(i) += (count[i] > 0 ? mu : 1.0) * n0.row(i);
+  if (!fixedNodes.size()) {
+    for (int i = 0; i < nn; ++i) ata.coeffRef(i, i) += count[i] > 0 ? mu : 1.0;
+    for (int i = 0; i < nn; ++i) rhs.row(i) += (count[i] > 0 ? mu : 1.0) * n0.row(i);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(ata);
+    MSK_ASSERT(solver.info() == Eigen::Success, "tetsFromVolumeSimplex: factorisation failed");
+    TetMesh out;
+    out.nodes = solver.solve(rhs);
+    out.tets = vm.tets;
+    return out;
+  }
+  // Fixed nodes: min |A_F N_F − (P − A_X N_X)|² + μ|N_F − N₀_F|² over the free nodes F.
+  Points known = Points::Zero(nn, 3);
+  for (Eigen::Index i = 0; i < fixedNodes.size(); ++i) known.row(fixedNodes[i]) = fixedPositions.row(i);
+  std::vector<int> freeIndex(static_cast<size_t>(nn), -1);
+  int nf = 0;
+  for (int i = 0; i < nn; ++i)
+    if (!fixed[static_cast<size_t>(i)]) freeIndex[static_cast<size_t>(i)] = nf++;
   TetMesh out;
-  out.nodes = solver.solve(rhs);
+  out.nodes = known;
   out.tets = vm.tets;
+  if (nf == 0) return out;
+  const Eigen::MatrixXd residual = Eigen::MatrixXd(p) - a * Eigen::MatrixXd(known);
+  std::vector<Eigen::Triplet<double>> ftrip;
+  for (int k = 0; k < a.outerSize(); ++k)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(a, k); it; ++it)
+      if (freeIndex[static_cast<size_t>(it.col())] >= 0)
+        ftrip.emplace_back(static_cast<int>(it.row()), freeIndex[static_cast<size_t>(it.col())], it.value());
+  Eigen::SparseMatrix<double> af(nt + nb, nf);
+  af.setFromTriplets(ftrip.begin(), ftrip.end());
+  Eigen::SparseMatrix<double> ff = af.transpose() * af;
+  Eigen::MatrixXd frhs = af.transpose() * residual;
+  for (int i = 0; i < nn; ++i) {
+    const int f = freeIndex[static_cast<size_t>(i)];
+    if (f < 0) continue;
+    const double w = count[i] > 0 ? mu : 1.0;
+    ff.coeffRef(f, f) += w;
+    frhs.row(f) += w * n0.row(i);
+  }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(ff);
+  MSK_ASSERT(solver.info() == Eigen::Success, "tetsFromVolumeSimplex: factorisation failed");
+  const Eigen::MatrixXd xf = solver.solve(frhs);
+  for (int i = 0; i < nn; ++i)
+    if (freeIndex[static_cast<size_t>(i)] >= 0) out.nodes.row(i) = xf.row(freeIndex[static_cast<size_t>(i)]);
   return out;
 }
 

@@ -15,6 +15,7 @@
 #include "msk/core/error.h"
 #include "msk/core/medial_axis.h"
 #include "msk/core/volume_preservation.h"
+#include "msk/core/tet_untangle.h"
 #include "msk/core/volume_simplex.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/surface_separation.h"
@@ -360,6 +361,8 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
     to.facetDistanceMm = 0.1 * edge;
     // ODT smoothing, sliver perturbation and exudation: fewer badly shaped tets to fold at the surface.
     to.odt = to.perturb = to.exude = true;
+    // Every tet gets a node off the surface, so finishObject() can untangle any tet the surface folds.
+    to.interiorNodes = true;
     tets = tetrahedralize(obj.templ, to);
     st.volume = volumeSimplexFromTets(tets);
     st.lv[0].triangles = tetBoundary(tets);
@@ -590,11 +593,25 @@ void finishObject(ObjectState& st) {
     all.topRows(st.volume->tetCount()) = st.volFinal;
     all.bottomRows(st.volume->ghostCount()) = st.current.positions;
     all = relaxVolumeSimplexTets(*st.volume, all);  // the tets' equilibrium with the final surface (no lag)
-    out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all);
+    // Boundary nodes on the evolved surface's vertices (the tet boundary is the surface's triangulation, prepareObject),
+    // interior nodes by least squares from the simplex vertices.
+    const TetMesh rest = tetsFromVolumeSimplex(*st.volume, st.volume->simplex.positions);
+    Eigen::VectorXi surfaceNode;
+    tetBoundary(rest, &surfaceNode);
+    MSK_ASSERT(surfaceNode.size() == out.mesh.vertexCount(), "volume model: tet boundary does not match the surface");
+    out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all, surfaceNode, out.mesh.vertices);
+    // Tets the least-squares recovery left flat or inverted: interior nodes moved to raise the volumes relative to rest
+    // (tet_untangle.h), and where the surface leaves them no room, nearby boundary nodes by a tenth of an edge at most.
+    Eigen::VectorXd restVolumes = tetVolumes(rest);
+    restVolumes = restVolumes.cwiseMax(1e-3 * std::fabs(restVolumes.mean()));
+    untangleTetMesh(out.volumeMesh, restVolumes, 0.1 * meanEdgeLength(out.mesh));
+    // Then the interior nodes of badly shaped tets moved to better their shape (the worst tets left have a thin
+    // boundary face, which no interior node can fix).
+    improveWorstTetShapes(out.volumeMesh, 0.3);
     out.volumeModelMm3 = totalVolume(out.volumeMesh);
     const Eigen::VectorXd vols = tetVolumes(out.volumeMesh);
     out.invertedTets = static_cast<int>((vols.array() <= 0).count());
-    out.volumeModelTemplateMm3 = volumeSimplexVolume(*st.volume, st.volume->simplex.positions);
+    out.volumeModelTemplateMm3 = totalVolume(rest);
     if (st.volumeHold)
       out.volumeDecision = st.volumeHold->decision() == VolumeDecision::Holding     ? "holding"
                            : st.volumeHold->decision() == VolumeDecision::Following ? "following"

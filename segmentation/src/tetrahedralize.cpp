@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <string>
 #include <utility>
@@ -23,6 +24,8 @@
 #include <CGAL/perturb_mesh_3.h>
 
 #include "msk/core/error.h"
+#include "msk/core/tet_split.h"
+#include "msk/core/tet_untangle.h"
 
 namespace msk {
 namespace {
@@ -148,6 +151,24 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetOptions& opt) {
     out.tets.row(static_cast<Eigen::Index>(i)) << tets[i][0], tets[i][1], tets[i][2], tets[i][3];
   const std::string tp = tetMeshProblem(out);
   if (!tp.empty()) throw Error("tetrahedralize: invalid output: " + tp);
+  if (opt.interiorNodes) {
+    const int before = out.nodeCount();
+    out = splitBoundaryTets(out, nullptr, opt.interiorSplit);
+    // The Steiner nodes start at edge midpoints or face centroids, often just inside the surface: moved away from small
+    // tets (volume energy against the mean tet), then to raise their tets' worst shape quality (the other nodes stay,
+    // so the boundary and the mesher's nodes are kept). Without the shape pass ~100 tets per muscle had a dihedral
+    // angle under 5 degrees, with it 0-8.
+    std::vector<char> steiner(static_cast<size_t>(out.nodeCount()), 0);
+    std::fill(steiner.begin() + before, steiner.end(), 1);
+    TetUntangleOptions smooth;
+    smooth.minRelativeVolume = std::numeric_limits<double>::infinity();
+    smooth.maxSweeps = 10;
+    const Eigen::VectorXd typical = Eigen::VectorXd::Constant(out.tetCount(), totalVolume(out) / out.tetCount());
+    untangleTets(out, steiner, typical, smooth);
+    improveTetShapes(out, steiner);
+    const std::string sp = tetMeshProblem(out);
+    if (!sp.empty()) throw Error("tetrahedralize: invalid output after the interior-node split: " + sp);
+  }
   return out;
 }
 

@@ -244,3 +244,28 @@ TEST(VolumeSimplexRelax, RestAndAffineGhostsKeepRestAndAffineTets) {
   EXPECT_EQ((solved.bottomRows(vm.ghostCount()) - moved.bottomRows(vm.ghostCount())).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_THROW(msk::relaxVolumeSimplexTets(vm, rest, 0.0), msk::ParameterError);
 }
+
+// Node recovery with the boundary nodes held (as the segmenter holds them on the evolved surface): held at their
+// affine images, the interior nodes come back at theirs from the affinely moved simplex vertices; the held nodes are
+// exactly where they were put; bad input is refused.
+TEST(VolumeSimplexRecovery, FixedBoundaryNodesAndAffineMotion) {
+  const msk::TetMesh cube = msk::makeCubeTets(4, 2.0);
+  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(cube);
+  Eigen::Matrix3d a;
+  a << 1.1, 0.2, 0.0, -0.1, 0.9, 0.05, 0.0, 0.1, 1.05;
+  const Eigen::RowVector3d shift(3, -1, 2);
+  const msk::Points moved = (vm.simplex.positions * a.transpose()).rowwise() + shift;
+  const msk::Points nodesMoved = (cube.nodes * a.transpose()).rowwise() + shift;
+  Eigen::VectorXi surfaceNode;
+  msk::tetBoundary(cube, &surfaceNode);
+  msk::Points held(surfaceNode.size(), 3);
+  for (Eigen::Index i = 0; i < surfaceNode.size(); ++i) held.row(i) = nodesMoved.row(surfaceNode[i]);
+  const msk::TetMesh m = msk::tetsFromVolumeSimplex(vm, moved, surfaceNode, held);
+  EXPECT_LT((m.nodes - nodesMoved).cwiseAbs().maxCoeff(), 1e-6);
+  for (Eigen::Index i = 0; i < surfaceNode.size(); ++i) EXPECT_TRUE(m.nodes.row(surfaceNode[i]) == held.row(i));
+  EXPECT_TRUE(m.tets == cube.tets);
+  EXPECT_THROW(msk::tetsFromVolumeSimplex(vm, moved, surfaceNode, held.topRows(3)), msk::ParameterError);
+  Eigen::VectorXi bad = surfaceNode;
+  bad[0] = cube.nodeCount();
+  EXPECT_THROW(msk::tetsFromVolumeSimplex(vm, moved, bad, held), msk::ParameterError);
+}

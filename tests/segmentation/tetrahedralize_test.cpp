@@ -1,12 +1,17 @@
 #include "msk/segmentation/tetrahedralize.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
+#include <utility>
 
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "msk/core/tet_split.h"
 #include "msk/core/volume_simplex.h"
 
 // A sphere of radius 20 mm: the tet mesh fills the surface's volume, is positively oriented and repeatable.
@@ -114,6 +119,80 @@ TEST(Tetrahedralize, OptimisersRemoveSliversRepeatably) {
   bad = {};
   bad.optimiseIterations = 0;
   EXPECT_THROW(msk::tetrahedralize(sphere, bad), msk::ParameterError);
+}
+
+namespace {
+
+/// Interior edges of a tet mesh whose two nodes both lie on the boundary ("bridges").
+int bridgeEdgeCount(const msk::TetMesh& m) {
+  const std::vector<char> on = msk::boundaryNodeMask(m);
+  const msk::Triangles bf = msk::tetBoundaryFaces(m);
+  std::set<std::pair<int, int>> boundaryEdges, bridges;
+  for (Eigen::Index f = 0; f < bf.rows(); ++f)
+    for (int k = 0; k < 3; ++k)
+      boundaryEdges.insert(std::minmax(bf(f, k), bf(f, (k + 1) % 3)));
+  for (int t = 0; t < m.tetCount(); ++t)
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) {
+        const auto e = std::minmax(m.tets(t, i), m.tets(t, j));
+        if (on[static_cast<size_t>(e.first)] && on[static_cast<size_t>(e.second)] && !boundaryEdges.count(e))
+          bridges.insert(e);
+      }
+  return static_cast<int>(bridges.size());
+}
+
+/// Triangles as node triples rotated to start at their smallest node (orientation kept), as a set.
+std::set<std::array<int, 3>> orientedFaceSet(const msk::Triangles& f) {
+  std::set<std::array<int, 3>> s;
+  for (Eigen::Index i = 0; i < f.rows(); ++i) {
+    std::array<int, 3> k = {f(i, 0), f(i, 1), f(i, 2)};
+    std::rotate(k.begin(), std::min_element(k.begin(), k.end()), k.end());
+    s.insert(k);
+  }
+  return s;
+}
+
+}  // namespace
+
+// TetOptions::interiorNodes with the segmenter's sizes (facets of the surface's mean edge, cells 1.5 times that,
+// optimisers on) on a flat ellipsoid (20 x 20 x 6 mm, about two tets thick, as thin muscles are): its mesh has tets
+// with all four nodes on the surface and bridge edges between surface nodes; with the option none is left, the
+// boundary faces and the mesher's nodes are the same, every tet is positive, the volume is unchanged, and runs repeat.
+TEST(Tetrahedralize, InteriorNodesInEveryTet) {
+  msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
+  sphere.vertices.col(2) *= 0.3;
+  msk::TetOptions options;
+  const double edge = msk::meanEdgeLength(sphere);
+  options.facetSizeMm = edge;
+  options.cellSizeMm = 1.5 * edge;
+  options.facetDistanceMm = 0.1 * edge;
+  options.odt = options.perturb = options.exude = true;
+  const msk::TetMesh plain = msk::tetrahedralize(sphere, options);
+  options.interiorNodes = true;
+  const msk::TetMesh a = msk::tetrahedralize(sphere, options), b = msk::tetrahedralize(sphere, options);
+  options.interiorSplit = msk::BoundarySplit::Tets;
+  const msk::TetMesh tetsOnly = msk::tetrahedralize(sphere, options);
+  EXPECT_EQ(msk::tetMeshProblem(a), "");
+  EXPECT_EQ(msk::tetMeshProblem(tetsOnly), "");
+  const int before = msk::boundaryOnlyTetCount(plain), bridgesBefore = bridgeEdgeCount(plain);
+  EXPECT_GT(before, 0);
+  EXPECT_GT(bridgesBefore, 0);
+  EXPECT_EQ(msk::boundaryOnlyTetCount(a), 0);
+  EXPECT_EQ(bridgeEdgeCount(a), 0);
+  EXPECT_EQ(msk::boundaryOnlyTetCount(tetsOnly), 0);
+  ASSERT_GT(a.nodeCount(), plain.nodeCount());
+  EXPECT_TRUE(a.nodes.topRows(plain.nodeCount()) == plain.nodes);
+  // The same boundary faces over the same nodes, orientation included (they may come in another order).
+  EXPECT_TRUE(orientedFaceSet(msk::tetBoundaryFaces(a)) == orientedFaceSet(msk::tetBoundaryFaces(plain)));
+  EXPECT_NEAR(msk::totalVolume(a), msk::totalVolume(plain), 1e-9 * msk::totalVolume(plain));
+  EXPECT_GT(msk::tetVolumes(a).minCoeff(), 0.0);
+  EXPECT_TRUE(a.tets == b.tets);
+  EXPECT_TRUE(a.nodes == b.nodes);
+  std::printf("[measure] flat ellipsoid at the segmenter's sizes: %d tets, %d with all nodes on the surface, %d bridge edges -> "
+              "bridges split: %d Steiner nodes, %d tets (tets only: %d, %d); smallest dihedral %.2f -> %.2f deg\n",
+              plain.tetCount(), before, bridgesBefore, a.nodeCount() - plain.nodeCount(), a.tetCount(),
+              tetsOnly.nodeCount() - plain.nodeCount(), tetsOnly.tetCount(),
+              msk::tetMinDihedralAngles(plain).minCoeff(), msk::tetMinDihedralAngles(a).minCoeff());
 }
 
 TEST(Tetrahedralize, RejectsOpenSurfacesAndBadOptions) {

@@ -112,6 +112,12 @@ Points volumeSimplexResiduals(const VolumeSimplexMesh& model, const Points& posi
 /// of the incident simplex vertices and μ small (1e-6), so the rest positions give back the rest nodes.
 TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& positions);
 
+/// As tetsFromVolumeSimplex(), with the nodes `fixedNodes` held at the rows of `fixedPositions` (#F×3, mm) and only the
+/// others solved for, e.g. the boundary nodes placed on the evolved surface's vertices. Throws ParameterError on sizes
+/// that do not match or a node index out of range.
+TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& positions, const Eigen::VectorXi& fixedNodes,
+                              const Points& fixedPositions);
+
 /// The tets' equilibrium under their 3-simplex constraints with the ghosts held (SurfaceDriven), nearest to where
 /// they are: returns `positions` (#(T+B)×3) with the tet rows x replaced by argmin Σ_t |Σ ε̃i Pi − P_t|² + μ|x − x₀|²
 /// (x₀ the given tet rows, μ > 0 dimensionless), one sparse solve. The constraints alone leave some tet motions free

@@ -1,6 +1,7 @@
 #pragma once
 /// Tetrahedralisation of a closed surface (CGAL Mesh_3 adapter): the tet mesh a 3-simplex volume model is built on
 /// (msk/core/volume_simplex.h).
+#include "msk/core/tet_split.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
 
@@ -26,13 +27,21 @@ struct TetOptions {
   /// Dihedral angle (degrees) the perturber and the exuder aim at; 0 = as high as they can get.
   double sliverBoundDeg = 0;
   unsigned seed = 0;  ///< seed of CGAL's random generator for the domain's initial points
+  /// Split what the surface alone would shape (splitBoundaryTets(), msk/core/tet_split.h, by `interiorSplit`), then
+  /// place the new Steiner nodes away from small and badly shaped tets (untangleTets(), improveTetShapes(),
+  /// msk/core/tet_untangle.h). A tet with all four nodes on the
+  /// surface, or an interior edge or face between surface nodes, is carried by the surface and inverts where a deformed
+  /// surface flattens a ridge or folds; with interior nodes the tets can be untangled. Off by default.
+  bool interiorNodes = false;
+  BoundarySplit interiorSplit = BoundarySplit::Bridges;  ///< what interiorNodes splits
 };
 
 /// Tetrahedralises the inside of a closed, outward-oriented triangle surface (world mm) with CGAL Mesh_3
 /// (polyhedral domain, Exact_predicates_inexact_constructions_kernel, sequential; optimisers as `options` say; no
 /// sharp-feature protection, so creases are rounded at the facet distance). Every tet is positively oriented; nodes not
 /// used by a tet are dropped. Nodes and tets come in a canonical order (nodes by coordinates), so the result depends only on
-/// the input and the options (fixed seed; exudation aside, see TetOptions::exude). Throws Error if the surface is not closed and
+/// the input and the options (fixed seed; exudation aside, see TetOptions::exude); Steiner nodes of
+/// TetOptions::interiorNodes come after the mesher's nodes. Throws Error if the surface is not closed and
 /// consistently oriented (closedMeshProblem), encloses no volume, or the mesher yields no tet, and ParameterError on a
 /// negative size or an out-of-range angle or ratio.
 TetMesh tetrahedralize(const TriangleMesh& closedSurface, const TetOptions& options = {});
