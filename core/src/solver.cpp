@@ -189,6 +189,10 @@ struct Solver::Impl {
         pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         resident = b;
       }
+      if (pool.size() == 1) {  // one thread: the colours as a cache-friendly wavefront (bitwise the same)
+        b->projectColours();
+        return;
+      }
       for (int k = 0; k < b->colours(); ++k) {
         const int begin = b->colourBegin(k);
         pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(begin + lo, begin + hi); });
