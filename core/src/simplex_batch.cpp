@@ -49,11 +49,12 @@ struct BatchArrays {
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8r (64-byte aligned): d (x, y, z,
-/// 0) and the coefficients c0 .. c3 (inverse masses included).
+/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8 (r − base) (64-byte aligned): d
+/// (x, y, z, 0) and the coefficients c0 .. c3 (inverse masses included); whether it is kept at kept[r].
 struct JacobiOut {
   double* rec;
   std::uint8_t* kept;
+  std::ptrdiff_t base = 0;
 };
 
 /// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) give the place `flat` of the
@@ -298,12 +299,17 @@ inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
   y.v = _mm256_unpackhi_pd(a, b);
   z.v = _mm256_unpacklo_pd(c, d);
 }
+/// How many particles ahead packParticles() and unpackParticles() prefetch their scattered places.
+constexpr int kScatterAhead = 32;
 /// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (particle v's x, y, z, w at
 /// 4 place[v]), four at a time; returns the first particle not done.
 int packParticles(const double* x, const double* y, const double* z, const double* w, const int* place, double* pos,
                   int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
+    if (v + kScatterAhead + 4 <= end)  // the places are scattered: ask for their cache lines early
+      for (int k = 0; k < 4; ++k)
+        _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
     const __m256d X = _mm256_loadu_pd(x + v), Y = _mm256_loadu_pd(y + v), Z = _mm256_loadu_pd(z + v),
                   W = _mm256_loadu_pd(w + v);
     const __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);  // x0 y0 x2 y2, x1 y1 x3 y3
@@ -321,6 +327,9 @@ int packParticles(const double* x, const double* y, const double* z, const doubl
 int unpackParticles(const double* pos, const int* place, double* x, double* y, double* z, int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
+    if (v + kScatterAhead + 4 <= end)
+      for (int k = 0; k < 4; ++k)
+        _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
     const int* at = place + v;
     const __m256d q0 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[0])),
                   q1 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[1])),
@@ -484,6 +493,10 @@ void zeroFilled(std::vector<double>& buffer, size_t n) {
   buffer.assign(n, 0.0);
 }
 
+/// Rows from which projectColours() and jacobiEqualSharesPacked() go chunk by chunk: below, the working copy (32 bytes
+/// a particle) and the Jacobi records (64 bytes a row) fit in the L2 cache of current processors anyway.
+constexpr int kChunkedFrom = 32768;
+
 /// A breadth-first (Cuthill–McKee; every degree is 3) order of the graph of `nb`, component by component, each from a
 /// pseudo-peripheral vertex (the last one reached from the component's lowest vertex): place → vertex. Neighbours end
 /// up at most about two breadth-first rings apart, O(√n) places on a closed surface, whatever the input numbering.
@@ -569,12 +582,13 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
   order_.resize(un);
   for (size_t i = 0; i < un; ++i) order_[i] = vertexAt_[static_cast<size_t>(corder_[i])];
   // Wavefront chunks (projectColours()): longer than twice the largest place distance between a row and one of its
-  // particles (so rows sharing a particle are at most one chunk apart), and at least 1024 places.
+  // particles (so rows sharing a particle are at most one chunk apart), and at least 4096 places (fewer part-filled
+  // packs at the chunks' ends).
   int reach = 0;
   for (int v = 0; v < n; ++v)
     for (int j = 0; j < 3; ++j)
       reach = std::max(reach, std::abs(placeOf_[static_cast<size_t>(v)] - placeOf_[static_cast<size_t>(nb(v, j))]));
-  waveChunk_ = std::max(2 * reach + 1, 1024);
+  waveChunk_ = std::max(2 * reach + 1, 4096);
   const int chunks = (n + waveChunk_ - 1) / waveChunk_;
   waveStart_.clear();
   for (size_t k = 0; k + 1 < colourStart_.size(); ++k)
@@ -651,6 +665,17 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     tFlat_.resize(4 * un);
     for (size_t i = 0; i < un; ++i)
       for (size_t e = 0; e < 4; ++e) tFlat_[e * un + i] = revFlat_[static_cast<size_t>(revStart_[i]) + e];
+  }
+  // Fused Jacobi (jacobiEqualSharesPacked()): chunks of a power of two ≥ the largest row-particle place distance, so a
+  // particle's rows lie in its chunk or the next one either side; their records in a ring of 4 chunks.
+  ringChunk_ = 512;
+  while (ringChunk_ < reach) ringChunk_ *= 2;
+  ring_.clear();
+  next_.clear();
+  if (uniform4_) {
+    tRing_.resize(4 * un);
+    const int mask = 4 * ringChunk_ - 1;
+    for (size_t i = 0; i < 4 * un; ++i) tRing_[i] = ((tFlat_[i] >> 3) & mask) * 8 + (tFlat_[i] & 7);
   }
   kept_.assign(un, 0);
   useLanes(BatchLanes::Avx512);
@@ -744,6 +769,11 @@ int SimplexInternalBatch::projectRange(int begin, int end) {
 }
 
 int SimplexInternalBatch::projectColours() {
+  if (size() < kChunkedFrom) {  // the working copy stays in cache anyway: whole colours, no part-filled packs
+    int skipped = 0;
+    for (int k = 0; k < colours(); ++k) skipped += projectRange(colourBegin(k), colourBegin(k + 1));
+    return skipped;
+  }
   const int chunks = (size() + waveChunk_ - 1) / waveChunk_, k1 = colours();
   const int* start = waveStart_.data();
   int skipped = 0;
@@ -872,18 +902,66 @@ void SimplexInternalBatch::applyEqualSharesPacked(double omega, int begin, int e
   const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), aligned(d_), omega / 4, vertexAt_.data()};
   double* pos = aligned(pos_);
 #if MSK_BATCH_AVX
-  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, begin, end);
-  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, pos, begin, end);
 #endif
-  lanes2::applyParticlesPacked(j, pos, begin, end);
+  lanes2::applyParticlesPacked(j, pos, pos, begin, end);
+}
+
+int SimplexInternalBatch::jacobiEqualSharesPacked(double omega) {
+  MSK_ASSERT(uniform4_, "simplex internal batch: equal shares need every particle in 4 rows");
+  const int n = size(), chunk = ringChunk_, chunks = (n + chunk - 1) / chunk;
+  if (n < kChunkedFrom) {  // the records stay in cache anyway: the two passes, in place
+    const int skipped = computeRange(0, n);
+    if (skipped == 0) applyEqualSharesPacked(omega, 0, n);
+    return skipped;
+  }
+  // Row r's record at r mod 4·chunk: min(4·chunk, n) records.
+  if (ring_.empty()) zeroFilled(ring_, 8 * static_cast<size_t>(std::min(4 * chunk, n)) + 8);
+  if (next_.size() != pos_.size()) zeroFilled(next_, pos_.size());
+  double* ring = aligned(ring_);
+  const double* src = aligned(pos_);
+  double* dst = aligned(next_);
+  const BatchArrays a = arraysOf(aligned(pos_), corder_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const JacobiView view{static_cast<std::ptrdiff_t>(n), tRing_.data(), ring, omega / 4, vertexAt_.data()};
+  const BatchLanes lanes = lanes_;
+  for (int c = 0; c <= chunks; ++c) {
+    if (c < chunks) {  // the rows of chunk c into ring slot c mod 4
+      const int lo = c * chunk, hi = std::min(n, lo + chunk);
+      const JacobiOut o{ring + 8 * static_cast<std::ptrdiff_t>(c % 4) * chunk, kept_.data(), lo};
+      int skipped;
+#if MSK_BATCH_AVX
+      if (lanes == BatchLanes::Avx512) skipped = lanes32::computeRows(a, gamma_, lo, hi, o);
+      else if (lanes == BatchLanes::Avx2) skipped = lanes8::computeRows(a, gamma_, lo, hi, o);
+      else skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
+#else
+      skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
+#endif
+      if (skipped > 0) return computeRange(0, n);  // counts needed: nothing applied, every row as computeRange()
+    }
+    if (c > 0) {  // the particles of chunk c − 1: their rows lie in chunks c − 2 .. c
+      const int lo = (c - 1) * chunk, hi = std::min(n, lo + chunk);
+#if MSK_BATCH_AVX
+      if (lanes == BatchLanes::Avx512) lanes32::applyParticlesPacked(view, src, dst, lo, hi);
+      else if (lanes == BatchLanes::Avx2) lanes8::applyParticlesPacked(view, src, dst, lo, hi);
+      else lanes2::applyParticlesPacked(view, src, dst, lo, hi);
+#else
+      lanes2::applyParticlesPacked(view, src, dst, lo, hi);
+#endif
+    }
+  }
+  pos_.swap(next_);
+  return 0;
 }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   loadRange(p, w, 0, size());
-  const int skipped = computeRange(0, size());
-  if (skipped == 0 && equalShares(w)) {
-    // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
-    applyEqualShares(p, omega, 0, size());
+  const bool equal = equalShares(w);
+  const int skipped = equal ? jacobiEqualSharesPacked(omega) : computeRange(0, size());
+  if (skipped == 0 && equal) {
+    // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4
+    // (applied in the packed copy, bitwise as applyEqualShares() into p).
+    storeRange(p, 0, size());
   } else {
     ownCounts_.setZero(w.size());
     addCounts(w, ownCounts_);

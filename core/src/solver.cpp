@@ -233,15 +233,22 @@ struct Solver::Impl {
     const int n = static_cast<int>(p.rows());
     counts.setZero(n);
     SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
+    SimplexInternalBatch* fused = nullptr;        // ... already applied (one thread: computed and applied in one pass)
     if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         std::atomic<int> skipped{0};
-        pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
+        const bool alone = sets.size() == 1 && b->equalShares(w);
+        if (alone && pool.size() == 1) {
+          skipped = b->jacobiEqualSharesPacked(opts.omega);  // bitwise the same as compute + applyEqualSharesPacked
+          if (skipped == 0) fused = b;
+        } else {
+          pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
+        }
         // Counted alone with every row kept on a closed mesh of free particles: every share is ω/4 (no counts).
-        if (sets.size() == 1 && skipped == 0 && b->equalShares(w)) equalShares = b;
+        if (alone && skipped == 0) equalShares = b;
         else b->addCounts(w, counts);
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
@@ -276,7 +283,7 @@ struct Solver::Impl {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (b == equalShares) {  // alone: into its packed copy, kept for the next iteration (storeResident())
-          pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
+          if (b != fused) pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
           resident = b;
         } else {
           storeResident();  // p current before the corrections are added to it

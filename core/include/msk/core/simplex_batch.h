@@ -126,8 +126,15 @@ class SimplexInternalBatch {
   /// applyEqualShares() into the packed working copy instead of `p` (bitwise the same positions; storeRange() writes
   /// them back), so that a set iterated alone needs no loadRange() between its iterations.
   void applyEqualSharesPacked(double omega, int begin, int end);
+  /// Jacobi iteration of this set alone on the working copy with every share ω/4 (equalShares() must hold for the
+  /// caller's w): computeRange() and applyEqualSharesPacked() over every row and particle, fused chunk by chunk over
+  /// the batch's order (a chunk's rows, then the particles of the chunk before, whose rows are all done), the records
+  /// in a ring that stays in cache and the new positions in a second packed copy. Bitwise the same positions. Returns
+  /// the rows skipped: if any is, nothing is applied, and every row's correction is left as computeRange(0, size())
+  /// leaves it (the caller goes on with addCounts(), scaleRange(), applyRange()). One thread.
+  int jacobiEqualSharesPacked(double omega);
   /// One Jacobi iteration of this set alone on `p` (load, compute, counts from its own rows, scale, apply; or the
-  /// equal shares when they hold), relaxation ω; returns the rows skipped.
+  /// equal shares when they hold, jacobiEqualSharesPacked()), relaxation ω; returns the rows skipped.
   int jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega);
 
  private:
@@ -168,6 +175,9 @@ class SimplexInternalBatch {
   // (revFlat_: 8·row + 4 + slot, its record at revFlat_ & ~7).
   std::vector<int> revStart_, revRow_, revFlat_;
   std::vector<int> tFlat_;  ///< with uniform4_: revFlat_ entry e of the particle at place i at e·n + i
+  int ringChunk_ = 512;      ///< places per chunk of jacobiEqualSharesPacked() (a power of two)
+  std::vector<int> tRing_;   ///< tFlat_ with each row r at its ring record r mod 4·ringChunk_
+  std::vector<double> ring_, next_;  ///< its ring of records, and the packed copy it writes (swapped with pos_)
   bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
