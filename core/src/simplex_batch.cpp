@@ -300,7 +300,7 @@ inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
   z.v = _mm256_unpacklo_pd(c, d);
 }
 /// How many particles ahead packParticles() and unpackParticles() prefetch their scattered places.
-constexpr int kScatterAhead = 32;
+constexpr int kScatterAhead = 128;
 /// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (particle v's x, y, z, w at
 /// 4 place[v]), four at a time; returns the first particle not done.
 int packParticles(const double* x, const double* y, const double* z, const double* w, const int* place, double* pos,
@@ -889,7 +889,16 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { app
 
 bool SimplexInternalBatch::equalShares(const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
-  return uniform4_ && (w.segment(first_, size()).array() > 0).all();
+  if (!uniform4_) return false;
+  // Called once per Jacobi iteration: blocks of branch-free (vectorisable) tests, leaving at the first block that fails.
+  const double* wv = w.data() + first_;
+  const int n = size();
+  for (int b = 0; b < n; b += 1024) {
+    bool all = true;
+    for (int v = b, e = std::min(n, b + 1024); v < e; ++v) all &= wv[v] > 0;
+    if (!all) return false;
+  }
+  return true;
 }
 
 void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, int end) const {

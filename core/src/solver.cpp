@@ -231,7 +231,8 @@ struct Solver::Impl {
   /// momentum balance and the sum at any particle never exceeds ω times the mean correction.
   void jacobiIteration(const std::vector<ConstraintSet*>& sets) {
     const int n = static_cast<int>(p.rows());
-    counts.setZero(n);
+    const bool loneBatch = sets.size() == 1 && batchOf(*sets[0]);  // zeroes the counts only if it needs them
+    if (!loneBatch) counts.setZero(n);
     SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
     SimplexInternalBatch* fused = nullptr;        // ... already applied (one thread: computed and applied in one pass)
     if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
@@ -248,8 +249,12 @@ struct Solver::Impl {
           pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
         }
         // Counted alone with every row kept on a closed mesh of free particles: every share is ω/4 (no counts).
-        if (alone && skipped == 0) equalShares = b;
-        else b->addCounts(w, counts);
+        if (alone && skipped == 0) {
+          equalShares = b;
+        } else {
+          if (loneBatch) counts.setZero(n);
+          b->addCounts(w, counts);
+        }
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         s->beginRows(p, w);
