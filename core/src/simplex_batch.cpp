@@ -302,19 +302,21 @@ inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
 /// How many particles ahead packParticles() and unpackParticles() prefetch their scattered places.
 constexpr int kScatterAhead = 128;
 /// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (particle v's x, y, z, w at
-/// 4 place[v]), four at a time; returns the first particle not done.
+/// 4 place[v], or 4v when not Scattered), four at a time; returns the first particle not done.
+template <bool Scattered>
 int packParticles(const double* x, const double* y, const double* z, const double* w, const int* place, double* pos,
                   int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
-    if (v + kScatterAhead + 4 <= end)  // the places are scattered: ask for their cache lines early
+    if (Scattered && v + kScatterAhead + 4 <= end)  // ask for the scattered places' cache lines early
       for (int k = 0; k < 4; ++k)
         _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
     const __m256d X = _mm256_loadu_pd(x + v), Y = _mm256_loadu_pd(y + v), Z = _mm256_loadu_pd(z + v),
                   W = _mm256_loadu_pd(w + v);
     const __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);  // x0 y0 x2 y2, x1 y1 x3 y3
     const __m256d t2 = _mm256_unpacklo_pd(Z, W), t3 = _mm256_unpackhi_pd(Z, W);  // z0 w0 z2 w2, z1 w1 z3 w3
-    const int* at = place + v;
+    const int at[4] = {Scattered ? place[v] : v, Scattered ? place[v + 1] : v + 1, Scattered ? place[v + 2] : v + 2,
+                       Scattered ? place[v + 3] : v + 3};
     _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[0]), _mm256_permute2f128_pd(t0, t2, 0x20));
     _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[1]), _mm256_permute2f128_pd(t1, t3, 0x20));
     _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[2]), _mm256_permute2f128_pd(t0, t2, 0x31));
@@ -322,15 +324,17 @@ int packParticles(const double* x, const double* y, const double* z, const doubl
   }
   return v;
 }
-/// The packed copy's x, y, z of particles [begin, end) (at places place[v]) back into the column arrays, four at a
-/// time; returns the first particle not done.
+/// The packed copy's x, y, z of particles [begin, end) (at places place[v], or v when not Scattered) back into the
+/// column arrays, four at a time; returns the first particle not done.
+template <bool Scattered>
 int unpackParticles(const double* pos, const int* place, double* x, double* y, double* z, int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
-    if (v + kScatterAhead + 4 <= end)
+    if (Scattered && v + kScatterAhead + 4 <= end)
       for (int k = 0; k < 4; ++k)
         _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
-    const int* at = place + v;
+    const int at[4] = {Scattered ? place[v] : v, Scattered ? place[v + 1] : v + 1, Scattered ? place[v + 2] : v + 2,
+                       Scattered ? place[v + 3] : v + 3};
     const __m256d q0 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[0])),
                   q1 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[1])),
                   q2 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[2])),
@@ -558,14 +562,18 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
     for (int j = 0; j < 3; ++j) MSK_ASSERT(nb(v, j) >= 0 && nb(v, j) < n, "neighbour index out of range");
   const size_t un = static_cast<size_t>(n);
   orderKind_ = order;
-  if (order == BatchOrder::Locality) {
+  if (order == BatchOrder::Locality && n >= kChunkedFrom) {  // smaller sets fit in L2 in any order
     vertexAt_ = breadthFirstOrder(nb);
   } else {
     vertexAt_.resize(un);
     for (int v = 0; v < n; ++v) vertexAt_[static_cast<size_t>(v)] = v;
   }
   placeOf_.resize(un);
-  for (size_t i = 0; i < un; ++i) placeOf_[static_cast<size_t>(vertexAt_[i])] = static_cast<int>(i);
+  scattered_ = false;
+  for (size_t i = 0; i < un; ++i) {
+    placeOf_[static_cast<size_t>(vertexAt_[i])] = static_cast<int>(i);
+    scattered_ = scattered_ || vertexAt_[i] != static_cast<int>(i);
+  }
   // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours), each colour's rows
   // then taken in the batch's order (they share no particle, so their order changes nothing).
   const Colouring col = colourConstraints(n, 4, [&nb](int r, int* out) {
@@ -718,7 +726,9 @@ void SimplexInternalBatch::loadRange(const Points& p, const Eigen::VectorXd& w, 
   const int* place = placeOf_.data();
   int v = begin;
 #if MSK_BATCH_AVX
-  if (lanes_ != BatchLanes::Sse2) v = lanes4::packParticles(x, y, z, wv, place, q, begin, end);
+  if (lanes_ != BatchLanes::Sse2)
+    v = scattered_ ? lanes4::packParticles<true>(x, y, z, wv, place, q, begin, end)
+                   : lanes4::packParticles<false>(x, y, z, wv, place, q, begin, end);
 #endif
   for (; v < end; ++v) {
     double* at = q + 4 * static_cast<std::ptrdiff_t>(place[v]);
@@ -739,7 +749,9 @@ void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
   const int* place = placeOf_.data();
   int v = begin;
 #if MSK_BATCH_AVX
-  if (lanes_ != BatchLanes::Sse2) v = lanes4::unpackParticles(q, place, x, y, z, begin, end);
+  if (lanes_ != BatchLanes::Sse2)
+    v = scattered_ ? lanes4::unpackParticles<true>(q, place, x, y, z, begin, end)
+                   : lanes4::unpackParticles<false>(q, place, x, y, z, begin, end);
 #endif
   for (; v < end; ++v) {
     const double* at = q + 4 * static_cast<std::ptrdiff_t>(place[v]);
@@ -858,7 +870,8 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   double* y = x + p.rows();
   double* z = y + p.rows();
   const double* d = aligned(d_);
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post, vertexAt_.data()};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post,
+                     scattered_ ? vertexAt_.data() : nullptr};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
@@ -890,7 +903,7 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { app
 bool SimplexInternalBatch::equalShares(const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
   if (!uniform4_) return false;
-  // Called once per Jacobi iteration: blocks of branch-free (vectorisable) tests, leaving at the first block that fails.
+  // Called once per Jacobi iteration: blocks of branch-free (vectorisable) tests, leaving at the first failing block.
   const double* wv = w.data() + first_;
   const int n = size();
   for (int b = 0; b < n; b += 1024) {
@@ -965,12 +978,14 @@ int SimplexInternalBatch::jacobiEqualSharesPacked(double omega) {
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   loadRange(p, w, 0, size());
-  const bool equal = equalShares(w);
-  const int skipped = equal ? jacobiEqualSharesPacked(omega) : computeRange(0, size());
-  if (skipped == 0 && equal) {
-    // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4
-    // (applied in the packed copy, bitwise as applyEqualShares() into p).
+  // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4
+  // (large sets: computed and applied in the packed copy, bitwise as applyEqualShares() into p).
+  const bool equal = equalShares(w), fused = equal && size() >= kChunkedFrom;
+  const int skipped = fused ? jacobiEqualSharesPacked(omega) : computeRange(0, size());
+  if (skipped == 0 && fused) {
     storeRange(p, 0, size());
+  } else if (skipped == 0 && equal) {
+    applyEqualShares(p, omega, 0, size());
   } else {
     ownCounts_.setZero(w.size());
     addCounts(w, ownCounts_);

@@ -347,7 +347,8 @@ TEST(SimplexBatch, LocalityOrderGivesBitwiseTheMeshOrderSweepsOnAShuffledMesh) {
       bt.applyRange(q[k], 0, n / 5);
       bt.applyRange(q[k], n / 5, n);
     }
-    EXPECT_TRUE(bitwiseEqual(q[0], q[1])) << "counted jacobi, largest difference " << (q[0] - q[1]).cwiseAbs().maxCoeff();
+    EXPECT_TRUE(bitwiseEqual(q[0], q[1])) << "counted jacobi, largest difference "
+                                          << (q[0] - q[1]).cwiseAbs().maxCoeff();
     // The Solver: one thread (wavefront) and two (colour by colour, split) agree bitwise, in both schemes.
     for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi})
       EXPECT_TRUE(bitwiseEqual(solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 1),

@@ -40,8 +40,9 @@ namespace msk {
 enum class BatchLanes { Sse2, Avx2, Avx512 };
 
 /// Order of the batch's rows and packed particles: the mesh's own vertex order, or a breadth-first (Cuthill–McKee)
-/// order of its neighbour graph, whose gathers stay within a window of a few rings (the default). The results are
-/// bitwise the same; only the speed on large meshes differs.
+/// order of its neighbour graph, whose gathers stay within a window of a few rings (the default; sets under 32 768
+/// rows, which fit in L2 anyway, keep the mesh order). The results are bitwise the same; only the speed on large
+/// meshes differs.
 enum class BatchOrder { Mesh, Locality };
 
 /// 2-simplex internal constraints (DESIGN-NOTES §2, method 2; shape memory P̃ = Σ ε̃i Pi + h̃ r⊥ n) as a batch: one row
@@ -150,6 +151,7 @@ class SimplexInternalBatch {
   double gamma_;
   std::vector<int> vertexAt_;     ///< place → vertex (local index) of the batch's order
   std::vector<int> placeOf_;      ///< vertex (local index) → its place in the batch's order
+  bool scattered_ = false;        ///< some vertex not at its own place (load, store and apply go through placeOf_)
   std::vector<int> colourStart_;  ///< #colours + 1 offsets into order_
   std::vector<int> order_;        ///< rows (vertices, local indices) colour by colour
   std::vector<int> corder_;       ///< the same rows as places of the batch's order
