@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -48,11 +49,12 @@ struct BatchArrays {
   const double *e0, *e1, *e2, *hr;
 };
 
-/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8r (64-byte aligned): d (x, y, z,
-/// 0) and the coefficients c0 .. c3 (inverse masses included).
+/// Where computeRows() writes each row's Jacobi correction: row r's record at rec + 8 (r − base) (64-byte aligned): d
+/// (x, y, z, 0) and the coefficients c0 .. c3 (inverse masses included); whether it is kept at kept[r].
 struct JacobiOut {
   double* rec;
   std::uint8_t* kept;
+  std::ptrdiff_t base = 0;
 };
 
 /// What the per-particle Jacobi apply reads: for particle v, entries e·n + v (e = 0..3) give the place `flat` of the
@@ -61,7 +63,8 @@ struct JacobiView {
   std::ptrdiff_t n;
   const int* flat;
   const double* rec;
-  double post;  ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
+  double post;        ///< factor of every sum (ω/4 when all shares are equal, else 1: the shares are in d)
+  const int* vertex;  ///< the particle (column index) at each place
 };
 
 // ------------------------------------------------------------------------------------------------ two lanes
@@ -296,32 +299,46 @@ inline void fromQ(const Q* in, D4& x, D4& y, D4& z) {
   y.v = _mm256_unpackhi_pd(a, b);
   z.v = _mm256_unpacklo_pd(c, d);
 }
-/// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (x, y, z, w at 4v), four at a
-/// time; returns the first particle not done.
-int packParticles(const double* x, const double* y, const double* z, const double* w, double* pos, int begin,
-                  int end) {
+/// How many particles ahead packParticles() and unpackParticles() prefetch their scattered places.
+constexpr int kScatterAhead = 128;
+/// Particles [begin, end) of the column arrays x, y, z, w into the packed copy `pos` (particle v's x, y, z, w at
+/// 4 place[v], or 4v when not Scattered), four at a time; returns the first particle not done.
+template <bool Scattered>
+int packParticles(const double* x, const double* y, const double* z, const double* w, const int* place, double* pos,
+                  int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
+    if (Scattered && v + kScatterAhead + 4 <= end)  // ask for the scattered places' cache lines early
+      for (int k = 0; k < 4; ++k)
+        _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
     const __m256d X = _mm256_loadu_pd(x + v), Y = _mm256_loadu_pd(y + v), Z = _mm256_loadu_pd(z + v),
                   W = _mm256_loadu_pd(w + v);
     const __m256d t0 = _mm256_unpacklo_pd(X, Y), t1 = _mm256_unpackhi_pd(X, Y);  // x0 y0 x2 y2, x1 y1 x3 y3
     const __m256d t2 = _mm256_unpacklo_pd(Z, W), t3 = _mm256_unpackhi_pd(Z, W);  // z0 w0 z2 w2, z1 w1 z3 w3
-    double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
-    _mm256_store_pd(at, _mm256_permute2f128_pd(t0, t2, 0x20));
-    _mm256_store_pd(at + 4, _mm256_permute2f128_pd(t1, t3, 0x20));
-    _mm256_store_pd(at + 8, _mm256_permute2f128_pd(t0, t2, 0x31));
-    _mm256_store_pd(at + 12, _mm256_permute2f128_pd(t1, t3, 0x31));
+    const int at[4] = {Scattered ? place[v] : v, Scattered ? place[v + 1] : v + 1, Scattered ? place[v + 2] : v + 2,
+                       Scattered ? place[v + 3] : v + 3};
+    _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[0]), _mm256_permute2f128_pd(t0, t2, 0x20));
+    _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[1]), _mm256_permute2f128_pd(t1, t3, 0x20));
+    _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[2]), _mm256_permute2f128_pd(t0, t2, 0x31));
+    _mm256_store_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[3]), _mm256_permute2f128_pd(t1, t3, 0x31));
   }
   return v;
 }
-/// The packed copy's x, y, z of particles [begin, end) back into the column arrays, four at a time; returns the first
-/// particle not done.
-int unpackParticles(const double* pos, double* x, double* y, double* z, int begin, int end) {
+/// The packed copy's x, y, z of particles [begin, end) (at places place[v], or v when not Scattered) back into the
+/// column arrays, four at a time; returns the first particle not done.
+template <bool Scattered>
+int unpackParticles(const double* pos, const int* place, double* x, double* y, double* z, int begin, int end) {
   int v = begin;
   for (; v + 4 <= end; v += 4) {
-    const double* at = pos + 4 * static_cast<std::ptrdiff_t>(v);
-    const __m256d q0 = _mm256_load_pd(at), q1 = _mm256_load_pd(at + 4), q2 = _mm256_load_pd(at + 8),
-                  q3 = _mm256_load_pd(at + 12);
+    if (Scattered && v + kScatterAhead + 4 <= end)
+      for (int k = 0; k < 4; ++k)
+        _mm_prefetch(reinterpret_cast<const char*>(pos + 4 * place[v + kScatterAhead + k]), _MM_HINT_T0);
+    const int at[4] = {Scattered ? place[v] : v, Scattered ? place[v + 1] : v + 1, Scattered ? place[v + 2] : v + 2,
+                       Scattered ? place[v + 3] : v + 3};
+    const __m256d q0 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[0])),
+                  q1 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[1])),
+                  q2 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[2])),
+                  q3 = _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(at[3]));
     const __m256d a = _mm256_permute2f128_pd(q0, q2, 0x20), b = _mm256_permute2f128_pd(q1, q3, 0x20);
     const __m256d c = _mm256_permute2f128_pd(q0, q2, 0x31), d = _mm256_permute2f128_pd(q1, q3, 0x31);
     _mm256_storeu_pd(x + v, _mm256_unpacklo_pd(a, b));
@@ -480,29 +497,85 @@ void zeroFilled(std::vector<double>& buffer, size_t n) {
   buffer.assign(n, 0.0);
 }
 
+/// Rows from which projectColours() and jacobiEqualSharesPacked() go chunk by chunk: below, the working copy (32 bytes
+/// a particle) and the Jacobi records (64 bytes a row) fit in the L2 cache of current processors anyway.
+constexpr int kChunkedFrom = 32768;
+
+/// A breadth-first (Cuthill–McKee; every degree is 3) order of the graph of `nb`, component by component, each from a
+/// pseudo-peripheral vertex (the last one reached from the component's lowest vertex): place → vertex. Neighbours end
+/// up at most about two breadth-first rings apart, O(√n) places on a closed surface, whatever the input numbering.
+std::vector<int> breadthFirstOrder(const NeighborTable& nb) {
+  const int n = static_cast<int>(nb.rows());
+  std::vector<int> order;
+  order.reserve(static_cast<size_t>(n));
+  std::vector<std::uint8_t> seen(static_cast<size_t>(n), 0);
+  auto reach = [&](int start) {  // appends the component of `start`
+    size_t head = order.size();
+    order.push_back(start);
+    seen[static_cast<size_t>(start)] = 1;
+    for (; head < order.size(); ++head) {
+      const int v = order[head];
+      for (int j = 0; j < 3; ++j) {
+        const int u = nb(v, j);
+        if (!seen[static_cast<size_t>(u)]) {
+          seen[static_cast<size_t>(u)] = 1;
+          order.push_back(u);
+        }
+      }
+    }
+  };
+  for (int v = 0; v < n; ++v) {
+    if (seen[static_cast<size_t>(v)]) continue;
+    const size_t mark = order.size();
+    reach(v);
+    const int far = order.back();
+    for (size_t i = mark; i < order.size(); ++i) seen[static_cast<size_t>(order[i])] = 0;
+    order.resize(mark);
+    reach(far);
+  }
+  return order;
+}
+
 }  // namespace
 
-SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double gamma) : gamma_(gamma) {
+SimplexInternalBatch::SimplexInternalBatch(const SimplexMesh& reference, double gamma, BatchOrder order)
+    : gamma_(gamma) {
   checkUnitInterval("internal stiffness", gamma);
   Eigen::MatrixX3d eps;
   Eigen::VectorXd hOverR;
   simplexReferenceParameters(reference, eps, hOverR);
-  build(reference.neighbors, eps, hOverR);
+  build(reference.neighbors, eps, hOverR, order);
 }
 
 SimplexInternalBatch::SimplexInternalBatch(const NeighborTable& nb, const Eigen::MatrixX3d& eps,
-                                           const Eigen::VectorXd& hOverR, double gamma)
+                                           const Eigen::VectorXd& hOverR, double gamma, BatchOrder order)
     : gamma_(gamma) {
   checkUnitInterval("internal stiffness", gamma);
-  build(nb, eps, hOverR);
+  build(nb, eps, hOverR, order);
 }
 
-void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR) {
+void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR,
+                                 BatchOrder order) {
   const int n = static_cast<int>(nb.rows());
   MSK_ASSERT(nb.cols() == 3 && eps.rows() == n && hOverR.size() == n, "simplex internal batch: size mismatch");
   for (int v = 0; v < n; ++v)
     for (int j = 0; j < 3; ++j) MSK_ASSERT(nb(v, j) >= 0 && nb(v, j) < n, "neighbour index out of range");
-  // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours).
+  const size_t un = static_cast<size_t>(n);
+  orderKind_ = order;
+  if (order == BatchOrder::Locality && n >= kChunkedFrom) {  // smaller sets fit in L2 in any order
+    vertexAt_ = breadthFirstOrder(nb);
+  } else {
+    vertexAt_.resize(un);
+    for (int v = 0; v < n; ++v) vertexAt_[static_cast<size_t>(v)] = v;
+  }
+  placeOf_.resize(un);
+  scattered_ = false;
+  for (size_t i = 0; i < un; ++i) {
+    placeOf_[static_cast<size_t>(vertexAt_[i])] = static_cast<int>(i);
+    scattered_ = scattered_ || vertexAt_[i] != static_cast<int>(i);
+  }
+  // The Solver's colouring of the same rows (its particles: the vertex, then its neighbours), each colour's rows
+  // then taken in the batch's order (they share no particle, so their order changes nothing).
   const Colouring col = colourConstraints(n, 4, [&nb](int r, int* out) {
     out[0] = r;
     for (int j = 0; j < 3; ++j) out[j + 1] = nb(r, j);
@@ -510,8 +583,27 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
   });
   colourStart_ = col.start;
   if (colourStart_.empty()) colourStart_.push_back(0);
-  order_ = col.order;
-  const size_t un = static_cast<size_t>(n);
+  corder_.resize(un);
+  for (size_t i = 0; i < un; ++i) corder_[i] = placeOf_[static_cast<size_t>(col.order[i])];
+  for (size_t k = 0; k + 1 < colourStart_.size(); ++k)
+    std::sort(corder_.begin() + colourStart_[k], corder_.begin() + colourStart_[k + 1]);
+  order_.resize(un);
+  for (size_t i = 0; i < un; ++i) order_[i] = vertexAt_[static_cast<size_t>(corder_[i])];
+  // Wavefront chunks (projectColours()): longer than twice the largest place distance between a row and one of its
+  // particles (so rows sharing a particle are at most one chunk apart), and at least 4096 places (fewer part-filled
+  // packs at the chunks' ends).
+  int reach = 0;
+  for (int v = 0; v < n; ++v)
+    for (int j = 0; j < 3; ++j)
+      reach = std::max(reach, std::abs(placeOf_[static_cast<size_t>(v)] - placeOf_[static_cast<size_t>(nb(v, j))]));
+  waveChunk_ = std::max(2 * reach + 1, 4096);
+  const int chunks = (n + waveChunk_ - 1) / waveChunk_;
+  waveStart_.clear();
+  for (size_t k = 0; k + 1 < colourStart_.size(); ++k)
+    for (int j = 0; j <= chunks; ++j) {
+      const auto first = corder_.begin() + colourStart_[k], last = corder_.begin() + colourStart_[k + 1];
+      waveStart_.push_back(static_cast<int>(std::lower_bound(first, last, j * waveChunk_) - corder_.begin()));
+    }
   nb0_.resize(un);
   nb1_.resize(un);
   nb2_.resize(un);
@@ -519,54 +611,79 @@ void SimplexInternalBatch::build(const NeighborTable& nb, const Eigen::MatrixX3d
   eps1_.resize(un);
   eps2_.resize(un);
   hr_.resize(un);
-  for (int v = 0; v < n; ++v) {
-    const size_t k = static_cast<size_t>(v);
-    nb0_[k] = nb(v, 0);
-    nb1_[k] = nb(v, 1);
-    nb2_[k] = nb(v, 2);
-    eps0_[k] = eps(v, 0);
-    eps1_[k] = eps(v, 1);
-    eps2_[k] = eps(v, 2);
-    hr_[k] = hOverR[v];
+  for (size_t i = 0; i < un; ++i) {
+    const int v = vertexAt_[i];
+    nb0_[i] = placeOf_[static_cast<size_t>(nb(v, 0))];
+    nb1_[i] = placeOf_[static_cast<size_t>(nb(v, 1))];
+    nb2_[i] = placeOf_[static_cast<size_t>(nb(v, 2))];
+    eps0_[i] = eps(v, 0);
+    eps1_[i] = eps(v, 1);
+    eps2_[i] = eps(v, 2);
+    hr_[i] = hOverR[v];
   }
   // The same rows in colour order, for the Gauss–Seidel sweeps (contiguous loads there too).
   for (auto* a : {&cnb0_, &cnb1_, &cnb2_}) a->resize(un);
   for (auto* a : {&ceps0_, &ceps1_, &ceps2_, &chr_}) a->resize(un);
   for (size_t i = 0; i < un; ++i) {
-    const size_t v = static_cast<size_t>(order_[i]);
-    cnb0_[i] = nb0_[v];
-    cnb1_[i] = nb1_[v];
-    cnb2_[i] = nb2_[v];
-    ceps0_[i] = eps0_[v];
-    ceps1_[i] = eps1_[v];
-    ceps2_[i] = eps2_[v];
-    chr_[i] = hr_[v];
+    const size_t r = static_cast<size_t>(corder_[i]);
+    cnb0_[i] = nb0_[r];
+    cnb1_[i] = nb1_[r];
+    cnb2_[i] = nb2_[r];
+    ceps0_[i] = eps0_[r];
+    ceps1_[i] = eps1_[r];
+    ceps2_[i] = eps2_[r];
+    chr_[i] = hr_[r];
   }
   zeroFilled(pos_, 4 * un + 8);
   zeroFilled(d_, 8 * un + 8);
-  // Rows touching each particle (CSR): its own row (slot 0), then the rows naming it as a neighbour (slot j + 1).
-  revStart_.assign(un + 1, 0);
+  // Rows touching each particle (CSR), in mesh order first: for each particle, its rows (own row slot 0, rows naming
+  // it as a neighbour slot j + 1) by ascending row vertex. Then the same lists at the particles' places, rows as
+  // places: the terms of every particle's sum keep the mesh order whatever the batch's order.
+  std::vector<int> meshStart(un + 1, 0), meshCode;
   for (int v = 0; v < n; ++v) {
-    ++revStart_[static_cast<size_t>(v) + 1];
-    for (int j = 0; j < 3; ++j) ++revStart_[static_cast<size_t>(nb(v, j)) + 1];
+    ++meshStart[static_cast<size_t>(v) + 1];
+    for (int j = 0; j < 3; ++j) ++meshStart[static_cast<size_t>(nb(v, j)) + 1];
   }
-  for (size_t v = 0; v < un; ++v) revStart_[v + 1] += revStart_[v];
-  revFlat_.resize(static_cast<size_t>(revStart_[un]));
-  revRow_.resize(revFlat_.size());
-  std::vector<int> fill(revStart_.begin(), revStart_.end() - 1);
-  for (int v = 0; v < n; ++v)
-    for (int slot = 0; slot < 4; ++slot) {
-      const int j = slot == 0 ? v : nb(v, slot - 1);
-      const size_t at = static_cast<size_t>(fill[static_cast<size_t>(j)]++);
-      revFlat_[at] = 8 * v + 4 + slot;
-      revRow_[at] = v;
+  for (size_t v = 0; v < un; ++v) meshStart[v + 1] += meshStart[v];
+  meshCode.resize(static_cast<size_t>(meshStart[un]));
+  {
+    std::vector<int> fill(meshStart.begin(), meshStart.end() - 1);
+    for (int v = 0; v < n; ++v)
+      for (int slot = 0; slot < 4; ++slot) {
+        const int j = slot == 0 ? v : nb(v, slot - 1);
+        meshCode[static_cast<size_t>(fill[static_cast<size_t>(j)]++)] = 4 * v + slot;
+      }
+  }
+  revStart_.assign(un + 1, 0);
+  revFlat_.resize(meshCode.size());
+  revRow_.resize(meshCode.size());
+  for (size_t i = 0; i < un; ++i) {
+    const size_t v = static_cast<size_t>(vertexAt_[i]);
+    int at = revStart_[i];
+    for (int e = meshStart[v]; e < meshStart[v + 1]; ++e, ++at) {
+      const int code = meshCode[static_cast<size_t>(e)], row = placeOf_[static_cast<size_t>(code >> 2)];
+      revRow_[static_cast<size_t>(at)] = row;
+      revFlat_[static_cast<size_t>(at)] = 8 * row + 4 + (code & 3);
     }
+    revStart_[i + 1] = at;
+  }
   uniform4_ = true;
-  for (size_t v = 0; v < un; ++v) uniform4_ = uniform4_ && revStart_[v + 1] - revStart_[v] == 4;
-  if (uniform4_) {  // entry-major copies: entry e of particles v .. v + 3 contiguous
+  for (size_t i = 0; i < un; ++i) uniform4_ = uniform4_ && revStart_[i + 1] - revStart_[i] == 4;
+  if (uniform4_) {  // entry-major copies: entry e of places i .. i + 3 contiguous
     tFlat_.resize(4 * un);
-    for (size_t v = 0; v < un; ++v)
-      for (size_t e = 0; e < 4; ++e) tFlat_[e * un + v] = revFlat_[static_cast<size_t>(revStart_[v]) + e];
+    for (size_t i = 0; i < un; ++i)
+      for (size_t e = 0; e < 4; ++e) tFlat_[e * un + i] = revFlat_[static_cast<size_t>(revStart_[i]) + e];
+  }
+  // Fused Jacobi (jacobiEqualSharesPacked()): chunks of a power of two ≥ the largest row-particle place distance, so a
+  // particle's rows lie in its chunk or the next one either side; their records in a ring of 4 chunks.
+  ringChunk_ = 512;
+  while (ringChunk_ < reach) ringChunk_ *= 2;
+  ring_.clear();
+  next_.clear();
+  if (uniform4_) {
+    tRing_.resize(4 * un);
+    const int mask = 4 * ringChunk_ - 1;
+    for (size_t i = 0; i < 4 * un; ++i) tRing_[i] = ((tFlat_[i] >> 3) & mask) * 8 + (tFlat_[i] & 7);
   }
   kept_.assign(un, 0);
   useLanes(BatchLanes::Avx512);
@@ -606,12 +723,15 @@ void SimplexInternalBatch::loadRange(const Points& p, const Eigen::VectorXd& w, 
   const double* z = y + p.rows();
   const double* wv = w.data() + first_;
   double* q = aligned(pos_);
+  const int* place = placeOf_.data();
   int v = begin;
 #if MSK_BATCH_AVX
-  if (lanes_ != BatchLanes::Sse2) v = lanes4::packParticles(x, y, z, wv, q, begin, end);
+  if (lanes_ != BatchLanes::Sse2)
+    v = scattered_ ? lanes4::packParticles<true>(x, y, z, wv, place, q, begin, end)
+                   : lanes4::packParticles<false>(x, y, z, wv, place, q, begin, end);
 #endif
   for (; v < end; ++v) {
-    double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    double* at = q + 4 * static_cast<std::ptrdiff_t>(place[v]);
     at[0] = x[v];
     at[1] = y[v];
     at[2] = z[v];
@@ -626,12 +746,15 @@ void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
   double* y = x + p.rows();
   double* z = y + p.rows();
   const double* q = aligned(pos_);
+  const int* place = placeOf_.data();
   int v = begin;
 #if MSK_BATCH_AVX
-  if (lanes_ != BatchLanes::Sse2) v = lanes4::unpackParticles(q, x, y, z, begin, end);
+  if (lanes_ != BatchLanes::Sse2)
+    v = scattered_ ? lanes4::unpackParticles<true>(q, place, x, y, z, begin, end)
+                   : lanes4::unpackParticles<false>(q, place, x, y, z, begin, end);
 #endif
   for (; v < end; ++v) {
-    const double* at = q + 4 * static_cast<std::ptrdiff_t>(v);
+    const double* at = q + 4 * static_cast<std::ptrdiff_t>(place[v]);
     x[v] = at[0];
     y[v] = at[1];
     z[v] = at[2];
@@ -649,7 +772,7 @@ BatchArrays arraysOf(double* pos, const std::vector<int>& order, const std::vect
 
 int SimplexInternalBatch::projectRange(int begin, int end) {
   checkRange(begin, end);
-  const BatchArrays a = arraysOf(aligned(pos_), order_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
+  const BatchArrays a = arraysOf(aligned(pos_), corder_, cnb0_, cnb1_, cnb2_, ceps0_, ceps1_, ceps2_, chr_);
 #if MSK_BATCH_AVX
   if (lanes_ == BatchLanes::Avx512) return lanes32::projectRows(a, gamma_, begin, end);
   if (lanes_ == BatchLanes::Avx2) return lanes8::projectRows(a, gamma_, begin, end);
@@ -657,17 +780,33 @@ int SimplexInternalBatch::projectRange(int begin, int end) {
   return lanes2::projectRows(a, gamma_, begin, end);
 }
 
+int SimplexInternalBatch::projectColours() {
+  if (size() < kChunkedFrom) {  // the working copy stays in cache anyway: whole colours, no part-filled packs
+    int skipped = 0;
+    for (int k = 0; k < colours(); ++k) skipped += projectRange(colourBegin(k), colourBegin(k + 1));
+    return skipped;
+  }
+  const int chunks = (size() + waveChunk_ - 1) / waveChunk_, k1 = colours();
+  const int* start = waveStart_.data();
+  int skipped = 0;
+  for (int step = 0; step < chunks + k1 - 1; ++step)
+    for (int k = std::max(0, step - chunks + 1); k < k1 && k <= step; ++k) {
+      const int* at = start + static_cast<std::ptrdiff_t>(k) * (chunks + 1) + (step - k);
+      if (at[1] > at[0]) skipped += projectRange(at[0], at[1]);
+    }
+  return skipped;
+}
+
 int SimplexInternalBatch::colouredSweep(Points& p, const Eigen::VectorXd& w) {
   loadRange(p, w, 0, size());
-  int skipped = 0;
-  for (int k = 0; k < colours(); ++k) skipped += projectRange(colourBegin(k), colourBegin(k + 1));
+  const int skipped = projectColours();
   storeRange(p, 0, size());
   return skipped;
 }
 
 int SimplexInternalBatch::computeRange(int begin, int end) {
   checkRange(begin, end);
-  const BatchArrays a = arraysOf(aligned(pos_), order_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const BatchArrays a = arraysOf(aligned(pos_), corder_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
   const JacobiOut o{aligned(d_), kept_.data()};
 #if MSK_BATCH_AVX
   if (lanes_ == BatchLanes::Avx512) return lanes32::computeRows(a, gamma_, begin, end, o);
@@ -683,19 +822,22 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
   int* cnt = counts.data() + first_;
   const std::uint8_t* kept = kept_.data();
   const int* row = revRow_.data();
+  const int* vertex = vertexAt_.data();
   if (uniform4_) {
     const int* t = tFlat_.data();  // row = flat / 8
     const int n = size();
-    for (int v = 0; v < n; ++v) {
-      const int k = kept[t[v] >> 3] + kept[t[n + v] >> 3] + kept[t[2 * n + v] >> 3] + kept[t[3 * n + v] >> 3];
+    for (int i = 0; i < n; ++i) {
+      const int k = kept[t[i] >> 3] + kept[t[n + i] >> 3] + kept[t[2 * n + i] >> 3] + kept[t[3 * n + i] >> 3];
+      const int v = vertex[i];
       cnt[v] += wv[v] > 0 ? k : 0;
     }
     return;
   }
-  for (int v = 0; v < size(); ++v) {
+  for (int i = 0; i < size(); ++i) {
+    const int v = vertex[i];
     if (!(wv[v] > 0)) continue;
     int k = 0;
-    for (int e = revStart_[static_cast<size_t>(v)]; e < revStart_[static_cast<size_t>(v) + 1]; ++e)
+    for (int e = revStart_[static_cast<size_t>(i)]; e < revStart_[static_cast<size_t>(i) + 1]; ++e)
       k += kept[row[e]];
     cnt[v] += k;
   }
@@ -709,9 +851,11 @@ void SimplexInternalBatch::scaleRange(const Eigen::VectorXi& counts, double omeg
   double share[9];
   for (int m = 0; m < 9; ++m) share[m] = omega / std::max(m, 1);
   double* d = aligned(d_);
-  for (int v = begin; v < end; ++v) {
-    const size_t r = static_cast<size_t>(v);
-    const int most = std::max(std::max(cnt[v], cnt[nb0_[r]]), std::max(cnt[nb1_[r]], cnt[nb2_[r]]));
+  const int* vertex = vertexAt_.data();
+  for (int i = begin; i < end; ++i) {
+    const size_t r = static_cast<size_t>(i);
+    const int most =
+        std::max(std::max(cnt[vertex[i]], cnt[vertex[nb0_[r]]]), std::max(cnt[vertex[nb1_[r]]], cnt[vertex[nb2_[r]]]));
     const double scale = most < 9 ? share[most] : omega / most;  // skipped rows carry zero corrections
     d[8 * r] *= scale;
     d[8 * r + 1] *= scale;
@@ -726,7 +870,8 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
   double* y = x + p.rows();
   double* z = y + p.rows();
   const double* d = aligned(d_);
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), d, post,
+                     scattered_ ? vertexAt_.data() : nullptr};
   int v = begin;
   if (uniform4_) {
 #if MSK_BATCH_AVX
@@ -746,9 +891,10 @@ void SimplexInternalBatch::applyScaled(Points& p, int begin, int end, double pos
       ay += c * d[8 * r + 1];
       az += c * d[8 * r + 2];
     }
-    x[v] += post * ax;
-    y[v] += post * ay;
-    z[v] += post * az;
+    const int at = vertexAt_[static_cast<size_t>(v)];
+    x[at] += post * ax;
+    y[at] += post * ay;
+    z[at] += post * az;
   }
 }
 
@@ -756,7 +902,16 @@ void SimplexInternalBatch::applyRange(Points& p, int begin, int end) const { app
 
 bool SimplexInternalBatch::equalShares(const Eigen::VectorXd& w) const {
   MSK_ASSERT(first_ >= 0 && w.size() >= first_ + size(), "simplex internal batch: size mismatch");
-  return uniform4_ && (w.segment(first_, size()).array() > 0).all();
+  if (!uniform4_) return false;
+  // Called once per Jacobi iteration: blocks of branch-free (vectorisable) tests, leaving at the first failing block.
+  const double* wv = w.data() + first_;
+  const int n = size();
+  for (int b = 0; b < n; b += 1024) {
+    bool all = true;
+    for (int v = b, e = std::min(n, b + 1024); v < e; ++v) all &= wv[v] > 0;
+    if (!all) return false;
+  }
+  return true;
 }
 
 void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, int end) const {
@@ -766,20 +921,70 @@ void SimplexInternalBatch::applyEqualShares(Points& p, double omega, int begin, 
 void SimplexInternalBatch::applyEqualSharesPacked(double omega, int begin, int end) {
   MSK_ASSERT(uniform4_, "simplex internal batch: equal shares need every particle in 4 rows");
   checkRange(begin, end);
-  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), aligned(d_), omega / 4};
+  const JacobiView j{static_cast<std::ptrdiff_t>(size()), tFlat_.data(), aligned(d_), omega / 4, vertexAt_.data()};
   double* pos = aligned(pos_);
 #if MSK_BATCH_AVX
-  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, begin, end);
-  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx512) return lanes32::applyParticlesPacked(j, pos, pos, begin, end);
+  if (lanes_ == BatchLanes::Avx2) return lanes8::applyParticlesPacked(j, pos, pos, begin, end);
 #endif
-  lanes2::applyParticlesPacked(j, pos, begin, end);
+  lanes2::applyParticlesPacked(j, pos, pos, begin, end);
+}
+
+int SimplexInternalBatch::jacobiEqualSharesPacked(double omega) {
+  MSK_ASSERT(uniform4_, "simplex internal batch: equal shares need every particle in 4 rows");
+  const int n = size(), chunk = ringChunk_, chunks = (n + chunk - 1) / chunk;
+  if (n < kChunkedFrom) {  // the records stay in cache anyway: the two passes, in place
+    const int skipped = computeRange(0, n);
+    if (skipped == 0) applyEqualSharesPacked(omega, 0, n);
+    return skipped;
+  }
+  // Row r's record at r mod 4·chunk: min(4·chunk, n) records.
+  if (ring_.empty()) zeroFilled(ring_, 8 * static_cast<size_t>(std::min(4 * chunk, n)) + 8);
+  if (next_.size() != pos_.size()) zeroFilled(next_, pos_.size());
+  double* ring = aligned(ring_);
+  const double* src = aligned(pos_);
+  double* dst = aligned(next_);
+  const BatchArrays a = arraysOf(aligned(pos_), corder_, nb0_, nb1_, nb2_, eps0_, eps1_, eps2_, hr_);
+  const JacobiView view{static_cast<std::ptrdiff_t>(n), tRing_.data(), ring, omega / 4, vertexAt_.data()};
+  const BatchLanes lanes = lanes_;
+  for (int c = 0; c <= chunks; ++c) {
+    if (c < chunks) {  // the rows of chunk c into ring slot c mod 4
+      const int lo = c * chunk, hi = std::min(n, lo + chunk);
+      const JacobiOut o{ring + 8 * static_cast<std::ptrdiff_t>(c % 4) * chunk, kept_.data(), lo};
+      int skipped;
+#if MSK_BATCH_AVX
+      if (lanes == BatchLanes::Avx512) skipped = lanes32::computeRows(a, gamma_, lo, hi, o);
+      else if (lanes == BatchLanes::Avx2) skipped = lanes8::computeRows(a, gamma_, lo, hi, o);
+      else skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
+#else
+      skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
+#endif
+      if (skipped > 0) return computeRange(0, n);  // counts needed: nothing applied, every row as computeRange()
+    }
+    if (c > 0) {  // the particles of chunk c − 1: their rows lie in chunks c − 2 .. c
+      const int lo = (c - 1) * chunk, hi = std::min(n, lo + chunk);
+#if MSK_BATCH_AVX
+      if (lanes == BatchLanes::Avx512) lanes32::applyParticlesPacked(view, src, dst, lo, hi);
+      else if (lanes == BatchLanes::Avx2) lanes8::applyParticlesPacked(view, src, dst, lo, hi);
+      else lanes2::applyParticlesPacked(view, src, dst, lo, hi);
+#else
+      lanes2::applyParticlesPacked(view, src, dst, lo, hi);
+#endif
+    }
+  }
+  pos_.swap(next_);
+  return 0;
 }
 
 int SimplexInternalBatch::jacobiSweep(Points& p, const Eigen::VectorXd& w, double omega) {
   loadRange(p, w, 0, size());
-  const int skipped = computeRange(0, size());
-  if (skipped == 0 && equalShares(w)) {
-    // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4.
+  // Every row kept and every particle free: each particle is counted in exactly its 4 rows, so every share is ω/4
+  // (large sets: computed and applied in the packed copy, bitwise as applyEqualShares() into p).
+  const bool equal = equalShares(w), fused = equal && size() >= kChunkedFrom;
+  const int skipped = fused ? jacobiEqualSharesPacked(omega) : computeRange(0, size());
+  if (skipped == 0 && fused) {
+    storeRange(p, 0, size());
+  } else if (skipped == 0 && equal) {
     applyEqualShares(p, omega, 0, size());
   } else {
     ownCounts_.setZero(w.size());

@@ -189,6 +189,10 @@ struct Solver::Impl {
         pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         resident = b;
       }
+      if (pool.size() == 1) {  // one thread: the colours as a cache-friendly wavefront (bitwise the same)
+        b->projectColours();
+        return;
+      }
       for (int k = 0; k < b->colours(); ++k) {
         const int begin = b->colourBegin(k);
         pool.run(b->colourBegin(k + 1) - begin, [&](int lo, int hi) { b->projectRange(begin + lo, begin + hi); });
@@ -227,18 +231,30 @@ struct Solver::Impl {
   /// momentum balance and the sum at any particle never exceeds ω times the mean correction.
   void jacobiIteration(const std::vector<ConstraintSet*>& sets) {
     const int n = static_cast<int>(p.rows());
-    counts.setZero(n);
+    const bool loneBatch = sets.size() == 1 && batchOf(*sets[0]);  // zeroes the counts only if it needs them
+    if (!loneBatch) counts.setZero(n);
     SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
+    SimplexInternalBatch* fused = nullptr;        // ... already applied (one thread: computed and applied in one pass)
     if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         std::atomic<int> skipped{0};
-        pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
+        const bool alone = sets.size() == 1 && b->equalShares(w);
+        if (alone && pool.size() == 1) {
+          skipped = b->jacobiEqualSharesPacked(opts.omega);  // bitwise the same as compute + applyEqualSharesPacked
+          if (skipped == 0) fused = b;
+        } else {
+          pool.run(b->size(), [&](int lo, int hi) { skipped += b->computeRange(lo, hi); });
+        }
         // Counted alone with every row kept on a closed mesh of free particles: every share is ω/4 (no counts).
-        if (sets.size() == 1 && skipped == 0 && b->equalShares(w)) equalShares = b;
-        else b->addCounts(w, counts);
+        if (alone && skipped == 0) {
+          equalShares = b;
+        } else {
+          if (loneBatch) counts.setZero(n);
+          b->addCounts(w, counts);
+        }
       } else if (s->rowCount() > 0) {
         SetCache& c = cacheFor(*s);
         s->beginRows(p, w);
@@ -272,7 +288,7 @@ struct Solver::Impl {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (b == equalShares) {  // alone: into its packed copy, kept for the next iteration (storeResident())
-          pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
+          if (b != fused) pool.run(b->size(), [&](int lo, int hi) { b->applyEqualSharesPacked(opts.omega, lo, hi); });
           resident = b;
         } else {
           storeResident();  // p current before the corrections are added to it

@@ -3,7 +3,9 @@
 // spheres with mixed, extreme and fixed masses and degenerate neighbourhoods, and the same rows are skipped.
 #include "msk/core/simplex_batch.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 
@@ -260,6 +262,99 @@ TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {
     }
   }
   for (int s : seen) EXPECT_EQ(s, 1);
+}
+
+/// `pr` with its simplex vertices relabelled at random (neighbour table, positions and masses alike).
+Problem shuffledProblem(const Problem& pr, unsigned seed) {
+  const int n = pr.reference.vertexCount();
+  std::vector<int> to(static_cast<size_t>(n));
+  for (int v = 0; v < n; ++v) to[static_cast<size_t>(v)] = v;
+  std::mt19937 rng(seed);
+  std::shuffle(to.begin(), to.end(), rng);
+  Problem out = pr;
+  out.reference.faceOffsets.clear();
+  out.reference.faceVertices.clear();
+  for (int v = 0; v < n; ++v) {
+    const int t = to[static_cast<size_t>(v)];
+    out.reference.positions.row(t) = pr.reference.positions.row(v);
+    for (int j = 0; j < 3; ++j) out.reference.neighbors(t, j) = to[static_cast<size_t>(pr.reference.neighbors(v, j))];
+    out.p0.row(pr.offset + t) = pr.p0.row(pr.offset + v);
+    out.w[pr.offset + t] = pr.w[pr.offset + v];
+  }
+  return out;
+}
+
+bool bitwiseEqual(const Points& a, const Points& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+// The locality order (breadth-first places, each colour's rows in place order, the one-thread coloured wavefront)
+// against the mesh's own order on a randomly relabelled sphere of 81 920 vertices (many wavefront chunks), with fixed
+// particles, mixed masses and a degenerate row, and without them: every sweep gives bitwise the same positions.
+TEST(SimplexBatch, LocalityOrderGivesBitwiseTheMeshOrderSweepsOnAShuffledMesh) {
+  for (bool defects : {true, false}) {
+    const Problem pr = shuffledProblem(makeProblem(6, 0.4, defects ? 2.0 : 0.0, 3, 23, defects), 5);
+    const int n = pr.reference.vertexCount();
+    msk::SimplexInternalBatch mesh(pr.reference, 0.8, msk::BatchOrder::Mesh), local(pr.reference, 0.8);
+    ASSERT_EQ(local.order(), msk::BatchOrder::Locality);
+    mesh.setFirstParticle(pr.offset);
+    local.setFirstParticle(pr.offset);
+    // A permutation whose neighbours sit close together (the shuffled numbering puts them ~n/3 apart).
+    std::vector<int> place(static_cast<size_t>(n), -1);
+    for (int i = 0; i < n; ++i) place[static_cast<size_t>(local.vertexAt(i))] = i;
+    int reach = 0;
+    for (int v = 0; v < n; ++v) {
+      ASSERT_GE(place[static_cast<size_t>(v)], 0);
+      for (int j = 0; j < 3; ++j)
+        reach = std::max(reach, std::abs(place[static_cast<size_t>(v)] -
+                                         place[static_cast<size_t>(pr.reference.neighbors(v, j))]));
+    }
+    EXPECT_LT(reach, 4 * static_cast<int>(std::sqrt(n)));
+    // Coloured: the wavefront (colouredSweep) and colour by colour, against the mesh order colour by colour.
+    Points a = pr.p0, b = pr.p0, c = pr.p0;
+    for (int it = 0; it < 3; ++it) {
+      mesh.loadRange(a, pr.w, 0, n);
+      for (int k = 0; k < mesh.colours(); ++k) mesh.projectRange(mesh.colourBegin(k), mesh.colourBegin(k + 1));
+      mesh.storeRange(a, 0, n);
+      local.colouredSweep(b, pr.w);
+      local.loadRange(c, pr.w, 0, n / 3);
+      local.loadRange(c, pr.w, n / 3, n);
+      for (int k = 0; k < local.colours(); ++k) local.projectRange(local.colourBegin(k), local.colourBegin(k + 1));
+      local.storeRange(c, 0, n);
+    }
+    EXPECT_TRUE(bitwiseEqual(a, b)) << "wavefront, largest difference " << (a - b).cwiseAbs().maxCoeff();
+    EXPECT_TRUE(bitwiseEqual(a, c)) << "colour by colour, largest difference " << (a - c).cwiseAbs().maxCoeff();
+    EXPECT_GT((a - pr.p0).cwiseAbs().maxCoeff(), 0.0);
+    // Jacobi: the set alone (equal shares where they hold), and the four steps with ranges split unevenly.
+    a = pr.p0;
+    b = pr.p0;
+    for (int it = 0; it < 3; ++it) {
+      mesh.jacobiSweep(a, pr.w, 1.4);
+      local.jacobiSweep(b, pr.w, 1.4);
+    }
+    EXPECT_TRUE(bitwiseEqual(a, b)) << "jacobi, largest difference " << (a - b).cwiseAbs().maxCoeff();
+    Points q[2] = {pr.p0, pr.p0};
+    msk::SimplexInternalBatch* batches[2] = {&mesh, &local};
+    for (int k = 0; k < 2; ++k) {
+      msk::SimplexInternalBatch& bt = *batches[k];
+      Eigen::VectorXi counts = Eigen::VectorXi::Zero(pr.w.size());
+      bt.loadRange(q[k], pr.w, 0, n);
+      bt.computeRange(0, n / 2);
+      bt.computeRange(n / 2, n);
+      bt.addCounts(pr.w, counts);
+      bt.scaleRange(counts, 1.2, 0, n / 3);
+      bt.scaleRange(counts, 1.2, n / 3, n);
+      bt.applyRange(q[k], 0, n / 5);
+      bt.applyRange(q[k], n / 5, n);
+    }
+    EXPECT_TRUE(bitwiseEqual(q[0], q[1])) << "counted jacobi, largest difference "
+                                          << (q[0] - q[1]).cwiseAbs().maxCoeff();
+    // The Solver: one thread (wavefront) and two (colour by colour, split) agree bitwise, in both schemes.
+    for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi})
+      EXPECT_TRUE(bitwiseEqual(solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 1),
+                               solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 2)))
+          << msk::schemeName(scheme);
+  }
 }
 
 TEST(SimplexBatch, JacobiConservesLinearMomentum) {
