@@ -120,6 +120,14 @@ inline bool smoothingSplit(double w, const double wi[3], Eigen::Vector3d& lambda
   return denom > 0 && std::isfinite(denom);
 }
 
+/// The corrections of a split (reactions `lambda`, denominator 1/m̄ = `denom`) for the correction d = P̃ − P.
+inline void applySplit(const Eigen::Vector3d& d, double w, const double wi[3], const Eigen::Vector3d& lambda,
+                       double denom, double gamma, Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]) {
+  const double mbar = gamma / denom;
+  dp = (w * mbar) * d;
+  for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
+}
+
 /// simplexInternalCorrection(), inline for the sweeps (as shapeTarget()).
 inline bool internalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], const Eigen::Vector3d& target,
                                double w, const double wi[3], const double eps[3], double gamma, Eigen::Vector3d& dp,
@@ -130,9 +138,7 @@ inline bool internalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
   bool split = false;
   if (!internalSplit(p, pi, d, w, wi, eps, lambda, denom, split)) return false;
   if (torqueFree) *torqueFree = split;
-  const double mbar = gamma / denom;
-  dp = (w * mbar) * d;
-  for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
+  applySplit(d, w, wi, lambda, denom, gamma, dp, dpi);
   return true;
 }
 }  // namespace
@@ -219,18 +225,9 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
   skipped_ = 0;
   Eigen::VectorXd smoothH;
   if (mode_ == InternalMode::Smoothing) smoothH = smoothingHeights(p);
-  static const double third[3] = {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
   for (int v = 0; v < n; ++v) {
     const int i0 = nb_(v, 0), i1 = nb_(v, 1), i2 = nb_(v, 2);
     Eigen::Vector3d pi[3] = {p.row(i0), p.row(i1), p.row(i2)};
-    const double* eps = mode_ == InternalMode::Smoothing ? third : eps_.row(v).data();
-    double epsCopy[3];
-    if (mode_ == InternalMode::ShapeMemory) {
-      epsCopy[0] = eps_(v, 0);
-      epsCopy[1] = eps_(v, 1);
-      epsCopy[2] = eps_(v, 2);
-      eps = epsCopy;
-    }
     const double wi[3] = {w[i0], w[i1], w[i2]};
     Eigen::Vector3d dp, dpi[3];
     if (mode_ == InternalMode::Smoothing) {
@@ -241,11 +238,9 @@ void SimplexInternalConstraints::project(Points& pAll, const Eigen::VectorXd& wA
         ++skipped_;
         continue;
       }
-      const Eigen::Vector3d d = target - pv;
-      const double mbar = gamma_ / denom;
-      dp = (w[v] * mbar) * d;
-      for (int i = 0; i < 3; ++i) dpi[i] = (-wi[i] * lambda[i] * mbar) * d;
+      applySplit(target - pv, w[v], wi, lambda, denom, gamma_, dp, dpi);
     } else {
+      const double eps[3] = {eps_(v, 0), eps_(v, 1), eps_(v, 2)};
       Eigen::Vector3d target;
       if (!shapeTarget(pi, eps, hOverR_[v], target) ||
           !internalCorrection(p.row(v).transpose(), pi, target, w[v], wi, eps, gamma_, dp, dpi, nullptr)) {

@@ -311,7 +311,7 @@ struct ObjectState {
   std::unique_ptr<VolumePreservation> volumeHold;  ///< holds the template's volume unless the image demands another
   int volFirst = 0;        ///< first tet particle in the stacked system
   Points volStart, volFinal;  ///< tet particles at the start and the end of the finest level
-  TetMesh volRest;                 ///< the volume model's rest tets (finishObject())
+  Eigen::VectorXd volRestVolumes;  ///< volumes of the volume model's rest tets, mm³ (finishObject())
   Eigen::VectorXi volSurfaceNode;  ///< tet node of each vertex of the output surface (finishObject())
   /// Tet particles at level l (0 unless the object is volumetric and l is the finest level).
   int tetCount(int l) const { return volume && l == 0 ? volume->tetCount() : 0; }
@@ -465,14 +465,15 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   if (st.volume && l == 0) {
     // Tet vertices start where the best affine fit of the template surface onto the current one puts them.
     // The refinement pass starts them where the finest level left them.
-    const int nt = st.volume->tetCount();
-    const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
-                                             Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
-    if (refine)
+    if (refine) {
       st.volStart = st.volFinal;
-    else
+    } else {
+      const int nt = st.volume->tetCount();
+      const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
+                                               Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
       st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
                     fit.topRightCorner<3, 1>().transpose();
+    }
     const double gamma = model.volumeStiffness >= 0 ? model.volumeStiffness : opts.volumeStiffness;
     st.volumeSet = std::make_unique<VolumeSimplexConstraints>(*st.volume, gamma, VolumeBoundary::SurfaceDriven);
     // The template's volume, held unless the image demands another (volume_preservation.h).
@@ -581,25 +582,25 @@ AxisFirstReport runAxisFirst(ObjectState& st, int l, const SegmentOptions& opts,
   return rep;
 }
 
-/// Final surface on the template's own triangulation, with per-vertex displacement and image residual.
 /// Puts the boundary nodes of `out.volumeMesh` on the vertices of `out.mesh` (the written surface), then untangles:
 /// tets the recovery or the surface left flat or inverted get their interior nodes moved to raise their volumes
 /// relative to rest (tet_untangle.h), and where the surface leaves them no room, nearby boundary nodes by a tenth of
 /// an edge at most; then the interior nodes of badly shaped tets are moved to better their shape (the worst tets left
 /// have a thin boundary face, which no interior node can fix). Counts the volume and the inverted tets.
-/// `rest` is the model's rest tet mesh and `surfaceNode` the tet node of each surface vertex (ObjectState).
-void settleVolumeMesh(ObjectResult& out, const TetMesh& rest, const Eigen::VectorXi& surfaceNode) {
+/// `restVolumes` are the volumes of the model's rest tets and `surfaceNode` the tet node of each surface vertex
+/// (ObjectState).
+void settleVolumeMesh(ObjectResult& out, const Eigen::VectorXd& restVolumes, const Eigen::VectorXi& surfaceNode) {
   MSK_ASSERT(surfaceNode.size() == out.mesh.vertexCount(), "volume model: tet boundary does not match the surface");
   for (Eigen::Index v = 0; v < surfaceNode.size(); ++v) out.volumeMesh.nodes.row(surfaceNode[v]) = out.mesh.vertices.row(v);
-  Eigen::VectorXd restVolumes = tetVolumes(rest);
-  restVolumes = restVolumes.cwiseMax(1e-3 * std::fabs(restVolumes.mean()));
-  untangleTetMesh(out.volumeMesh, restVolumes, 0.1 * meanEdgeLength(out.mesh));
+  untangleTetMesh(out.volumeMesh, restVolumes.cwiseMax(1e-3 * std::fabs(restVolumes.mean())),
+                  0.1 * meanEdgeLength(out.mesh));
   improveWorstTetShapes(out.volumeMesh, 0.3);
   out.volumeModelMm3 = totalVolume(out.volumeMesh);
   out.invertedTets = static_cast<int>((tetVolumes(out.volumeMesh).array() <= 0).count());
-  out.volumeModelTemplateMm3 = totalVolume(rest);
+  out.volumeModelTemplateMm3 = restVolumes.sum();
 }
 
+/// Final surface on the template's own triangulation, with per-vertex displacement and image residual.
 void finishObject(ObjectState& st) {
   st.current.pointData.clear();
   st.current.pointData["image_residual_mm"] = st.residual.size() == st.current.vertexCount()
@@ -615,11 +616,12 @@ void finishObject(ObjectState& st) {
     all = relaxVolumeSimplexTets(*st.volume, all);  // the tets' equilibrium with the final surface (no lag)
     // Boundary nodes on the evolved surface's vertices (the tet boundary is the surface's triangulation, prepareObject),
     // interior nodes by least squares from the simplex vertices.
-    st.volRest = tetsFromVolumeSimplex(*st.volume, st.volume->simplex.positions);
-    tetBoundary(st.volRest, &st.volSurfaceNode);
+    const TetMesh rest = tetsFromVolumeSimplex(*st.volume, st.volume->simplex.positions);
+    tetBoundary(rest, &st.volSurfaceNode);
+    st.volRestVolumes = tetVolumes(rest);
     MSK_ASSERT(st.volSurfaceNode.size() == out.mesh.vertexCount(), "volume model: tet boundary does not match the surface");
     out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all, st.volSurfaceNode, out.mesh.vertices);
-    settleVolumeMesh(out, st.volRest, st.volSurfaceNode);
+    settleVolumeMesh(out, st.volRestVolumes, st.volSurfaceNode);
     if (st.volumeHold)
       out.volumeDecision = st.volumeHold->decision() == VolumeDecision::Holding     ? "holding"
                            : st.volumeHold->decision() == VolumeDecision::Following ? "following"
@@ -955,7 +957,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       ObjectResult& o = res.objects[i];
       o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - objs[i].lv[0].triangles.vertices).rowwise().norm();
       o.volumeMm3 = enclosedVolume(o.mesh);
-      if (objs[i].volume) settleVolumeMesh(o, objs[i].volRest, objs[i].volSurfaceNode);  // follows the separated surface
+      if (objs[i].volume) settleVolumeMesh(o, objs[i].volRestVolumes, objs[i].volSurfaceNode);  // the separated surface
     }
     for (const SeparationPair& p : pairs)
       res.pairPenetrationMm.push_back(std::max(penetrationDepth(*surfaces[static_cast<size_t>(p.a)], *surfaces[static_cast<size_t>(p.b)]),
