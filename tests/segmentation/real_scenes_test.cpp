@@ -5,11 +5,14 @@
 // and their sources plus a margin; scores are taken on the full grid against the
 // reference labels (TotalSegmentator's, not by hand). Skipped without ../shared/data.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include <Eigen/Dense>
 #include <gtest/gtest.h>
 
 #include "msk/imaging/nifti_io.h"
@@ -29,6 +32,7 @@ struct ObjectSpec {
   int label;
   int templateFrom;
   msk::ObjectKind kind;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  ///< rigid motion applied to the mirrored template (world mm)
 };
 
 /// How far every template is moved (mm) and its per-object direction and scale (fixed, so the test is deterministic).
@@ -48,7 +52,7 @@ struct RealScene {
 /// structure it was mirrored from (the scene's profile source): undo the displacement and scale about the centroid,
 /// then mirror across x = midX.
 Eigen::Matrix4d sourceOfTemplate(const msk::TriangleMesh& templ, const Eigen::Vector3d& offsetMm, double scale,
-                                 double midX) {
+                                 double midX, const Eigen::Matrix4d& pose = Eigen::Matrix4d::Identity()) {
   const Eigen::Vector3d c = templ.vertices.colwise().mean().transpose();  // = mirrored centroid + offset
   Eigen::Matrix4d undo = Eigen::Matrix4d::Identity();
   undo.topLeftCorner<3, 3>() /= scale;
@@ -56,7 +60,7 @@ Eigen::Matrix4d sourceOfTemplate(const msk::TriangleMesh& templ, const Eigen::Ve
   Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
   mirror(0, 0) = -1;
   mirror(0, 3) = 2 * midX;
-  return mirror * undo;
+  return mirror * pose.inverse() * undo;
 }
 
 /// Builds the scene: contralateral templates (mirrored across x = midX, `vertices` each), displaced by `displacementMm`
@@ -78,11 +82,15 @@ RealScene makeScene(const msk::ImageF& image, const msk::LabelMap& labels, const
     o.kind = specs[i].kind;
     const Eigen::Vector3d offset = displacementMm * kDirections[i % 4];
     const double scale = displacementMm > 0 ? kScales[i % 4] : 1.0;
-    o.templ = msk::test::displacedScaled(msk::test::mirroredTemplate(labels, specs[i].templateFrom, midX, topts),
-                                         offset, scale);
+    msk::TriangleMesh mirrored = msk::test::mirroredTemplate(labels, specs[i].templateFrom, midX, topts);
+    const Eigen::Matrix4d& pose = specs[i].pose;
+    mirrored.vertices = ((mirrored.vertices * pose.topLeftCorner<3, 3>().transpose()).rowwise() +
+                         pose.topRightCorner<3, 1>().transpose())
+                            .eval();
+    o.templ = msk::test::displacedScaled(mirrored, offset, scale);
     o.hasForce = true;
     o.force = o.model.imageForce = msk::TargetMode::Profile;
-    o.profileSource = sourceOfTemplate(o.templ, offset, scale, midX);
+    o.profileSource = sourceOfTemplate(o.templ, offset, scale, midX, pose);
     meshes.push_back(o.templ);
     meshes.push_back(o.templ);  // and where its profiles are learned
     msk::Points normals = msk::Points::Zero(o.templ.vertexCount(), 3);
@@ -183,6 +191,127 @@ int splitComponents(msk::LabelMap& labels, int label, int firstLabel, size_t min
   return n;
 }
 
+/// How well the mirrored contralateral label can match at best: the Dice against label `to` of label `from` mirrored
+/// across x = midX, as is and after its best rigid fit onto `to` (point-to-point ICP over the two labels' boundary voxel
+/// centres, world mm); the fit's rotation (degrees) and how far it moves the mirrored boundary's centroid (mm).
+struct RigidFitScore {
+  double mirrorDice = 0, fittedDice = 0, rotationDeg = 0, centroidMoveMm = 0;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  ///< the fit: mirrored label → `to` (world mm)
+};
+RigidFitScore rigidFitOfMirror(const msk::LabelMap& labels, int from, int to, double midX) {
+  const msk::Grid& g = labels.grid;
+  auto boundary = [&](int label, bool mirror) {
+    std::vector<Eigen::Vector3d> pts;
+    for (int k = 0; k < g.dims[2]; ++k)
+      for (int j = 0; j < g.dims[1]; ++j)
+        for (int i = 0; i < g.dims[0]; ++i) {
+          if (labels.at(i, j, k) != label) continue;
+          bool edge = false;
+          for (const Eigen::Vector3i& d : {Eigen::Vector3i(1, 0, 0), Eigen::Vector3i(-1, 0, 0), Eigen::Vector3i(0, 1, 0),
+                                          Eigen::Vector3i(0, -1, 0), Eigen::Vector3i(0, 0, 1), Eigen::Vector3i(0, 0, -1)}) {
+            const Eigen::Vector3i u = Eigen::Vector3i(i, j, k) + d;
+            edge = edge || !g.contains(u[0], u[1], u[2]) || labels.at(u[0], u[1], u[2]) != label;
+          }
+          if (!edge) continue;
+          Eigen::Vector3d x = g.toWorld(Eigen::Vector3d(i, j, k));
+          if (mirror) x.x() = 2 * midX - x.x();
+          pts.push_back(x);
+        }
+    return pts;
+  };
+  const std::vector<Eigen::Vector3d> src = boundary(from, true), dst = boundary(to, false);
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d t = Eigen::Vector3d::Zero(), centroid = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& x : src) centroid += x / static_cast<double>(src.size());
+  for (int it = 0; it < 30 && !src.empty() && !dst.empty(); ++it) {
+    Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> match(src.size());
+    for (size_t a = 0; a < src.size(); ++a) {
+      const Eigen::Vector3d q = R * src[a] + t;
+      double best = std::numeric_limits<double>::infinity();
+      for (const Eigen::Vector3d& b : dst)
+        if ((b - q).squaredNorm() < best) best = (b - q).squaredNorm(), match[a] = b;
+      ca += src[a];
+      cb += match[a];
+    }
+    ca /= static_cast<double>(src.size());
+    cb /= static_cast<double>(src.size());
+    Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+    for (size_t a = 0; a < src.size(); ++a) h += (src[a] - ca) * (match[a] - cb).transpose();
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d flip = Eigen::Matrix3d::Identity();
+    flip(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1 : 1;
+    R = svd.matrixV() * flip * svd.matrixU().transpose();
+    t = cb - R * ca;
+  }
+  // Dice over the grid: voxel x lies in the fitted mirror if R⁻¹(x − t), mirrored back, falls in a voxel of `from`.
+  auto dice = [&](const Eigen::Matrix3d& rot, const Eigen::Vector3d& shift) {
+    size_t a = 0, b = 0, both = 0;
+    for (int k = 0; k < g.dims[2]; ++k)
+      for (int j = 0; j < g.dims[1]; ++j)
+        for (int i = 0; i < g.dims[0]; ++i) {
+          Eigen::Vector3d q = rot.transpose() * (g.toWorld(Eigen::Vector3d(i, j, k)) - shift);
+          q.x() = 2 * midX - q.x();
+          const Eigen::Vector3i v = g.toVoxel(q).array().round().cast<int>();
+          const bool in = g.contains(v[0], v[1], v[2]) && labels.at(v[0], v[1], v[2]) == from;
+          const bool ref = labels.at(i, j, k) == to;
+          a += in;
+          b += ref;
+          both += in && ref;
+        }
+    return a + b > 0 ? 2.0 * static_cast<double>(both) / static_cast<double>(a + b) : 0.0;
+  };
+  RigidFitScore sc;
+  sc.mirrorDice = dice(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  sc.fittedDice = dice(R, t);
+  sc.rotationDeg = Eigen::AngleAxisd(R).angle() * 180.0 / M_PI;
+  sc.centroidMoveMm = (R * centroid + t - centroid).norm();
+  sc.pose.topLeftCorner<3, 3>() = R;
+  sc.pose.topRightCorner<3, 1>() = t;
+  return sc;
+}
+
+/// Where a result surface sits against its label, by what lies `outMm` outside each vertex along its normal: mean and
+/// mean absolute signed distance (mm, + = the surface outside the label) to the nearest label boundary crossing along
+/// the normal within ± 9 mm (vertices without one are not counted).
+struct BoundaryClassError {
+  const char* name;
+  int vertices = 0;
+  double signedMm = 0, absMm = 0;
+};
+std::vector<BoundaryClassError> errorByOutside(const msk::TriangleMesh& mesh, const msk::LabelMap& labels, int label,
+                                               const msk::ImageF& image, const std::vector<int>& partners,
+                                               const std::vector<int>& bones, double outMm = 6.0) {
+  std::vector<BoundaryClassError> cls = {{"fat (< -40 HU)"}, {"bone"}, {"partner muscles"}, {"other soft tissue"}};
+  auto labelAt = [&](const Eigen::Vector3d& x) {
+    const Eigen::Vector3i v = labels.grid.toVoxel(x).array().round().cast<int>();
+    return labels.grid.contains(v[0], v[1], v[2]) ? labels.at(v[0], v[1], v[2]) : 0;
+  };
+  auto valueAt = [&](const Eigen::Vector3d& x) {
+    const Eigen::Vector3i v = image.grid.toVoxel(x).array().round().cast<int>();
+    return image.grid.contains(v[0], v[1], v[2]) ? static_cast<double>(image.at(v[0], v[1], v[2])) : -1000.0;
+  };
+  auto among = [](int l, const std::vector<int>& set) { return std::find(set.begin(), set.end(), l) != set.end(); };
+  const msk::Points normals = msk::vertexNormals(mesh);
+  for (int i = 0; i < mesh.vertexCount(); ++i) {
+    const Eigen::Vector3d p = mesh.vertices.row(i).transpose(), n = normals.row(i).transpose().normalized();
+    const int outside = labelAt(p + outMm * n);
+    const double hu = valueAt(p + outMm * n);
+    const size_t c = among(outside, bones) || hu > 250 ? 1 : among(outside, partners) ? 2 : hu < -40 ? 0 : 3;
+    double best = std::numeric_limits<double>::infinity();  // the label's inside → outside crossing nearest to p
+    for (double s = -9; s < 9; s += 0.25)
+      if (labelAt(p + s * n) == label && labelAt(p + (s + 0.25) * n) != label && std::abs(s + 0.125) < std::abs(best))
+        best = s + 0.125;
+    if (!std::isfinite(best)) continue;
+    ++cls[c].vertices;
+    cls[c].signedMm -= best;
+    cls[c].absMm += std::abs(best);
+  }
+  for (auto& c : cls)
+    if (c.vertices > 0) c.signedMm /= c.vertices, c.absMm /= c.vertices;
+  return cls;
+}
+
 /// totalseg-mr: left and right autochthon muscles (46, 47; each from the other, mirrored) and the vertebrae (19) as
 /// bones. Label 19 holds several vertebral bodies apart from each other (the discs between them are label 20), so each
 /// component of at least 100 voxels is its own bone object (labels 1901, 1902, ...; template from itself, mirrored).
@@ -247,8 +376,9 @@ TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
 // muscles, whose edges on this CT are not the labelled boundary, so they stay fixed in it). Measured: femur 0.763 →
 // 0.915 (0.896 without the pass), hip bone 0.847 → 0.948 (0.947), gluteus maximus 0.731 → 0.892, gluteus medius
 // 0.770 → 0.859, no overlap. The gluteus medius is short of 0.88 (it reaches 0.849–0.866 from every start and option
-// tried, 0.859 from the undisplaced mirror, whose own Dice is 0.792; even the best rigid fit of the mirrored left label
-// onto the right one scores 0.801: the sides differ where the image shows no boundary, see README); guard its level.
+// tried, 0.859 from the undisplaced mirror, whose own Dice is 0.792; the best rigid fit of the mirrored left label onto
+// the right one scores 0.847, and a template started there ends at 0.867: the sides differ where the image shows no
+// boundary, see README and CtGlutealSidesBestRigidFit below); guard its level.
 TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
@@ -260,10 +390,63 @@ TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   opts.sigmaFine = 1.0;
   const SceneScore sc = runScene(rs, opts);
   printScore("totalseg-ct: right femur, hip bone, gluteus maximus and medius", rs, sc);
+  // Where the muscles' surfaces sit against their labels, by what lies outside them (README: the gluteus medius keeps
+  // its template's pose toward its partners and the unlabelled soft tissue, where the image shows no boundary).
+  for (size_t i = 2; i < 4; ++i) {
+    std::printf("  %s, signed error (+ = outside the label) by what lies 6 mm outside:\n", sc.objects[i].name.c_str());
+    for (const BoundaryClassError& c : errorByOutside(sc.result.objects[i].mesh, rs.reference, sc.objects[i].label,
+                                                      rs.image, i == 2 ? std::vector<int>{83, 85} : std::vector<int>{81, 85},
+                                                      {76, 78}))
+      std::printf("    %-18s %4d vertices  mean %+5.2f mm  mean |.| %4.2f mm\n", c.name, c.vertices, c.signedMm, c.absMm);
+  }
   const double guard[] = {0.90, 0.93, 0.88, 0.85};
   for (size_t i = 0; i < sc.objects.size(); ++i) {
     EXPECT_GE(sc.objects[i].after.dice, guard[i]) << sc.objects[i].name;
     EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice + 0.05) << sc.objects[i].name;
   }
   EXPECT_EQ(sc.overlapVoxels, 0u);
+}
+
+// How far a mirrored contralateral label can match at best on this CT (README, issue 4): the best rigid fit of the left
+// gluteus maximus and medius labels, mirrored, onto the right ones. Measured: maximus 0.827 → 0.858 (1.7°, centroid
+// moved 2.5 mm), medius 0.801 → 0.847 (3.9°, 5.4 mm); the gluteus medius template started at its fitted pose ends at
+// 0.867, so its 0.88 cannot come from placing the template better, only from the image, which shows no boundary toward
+// the other gluteal muscles. The assertions check the fit (it does not lose Dice, stays a small motion) and the
+// documented limit.
+TEST(RealScenes, CtGlutealSidesBestRigidFit) {
+  const std::string data = msk::test::sharedData();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
+  const double midX = msk::test::labelCentroid(labels, 25).x();
+  const struct {
+    const char* name;
+    int from, to;
+  } muscles[] = {{"gluteus maximus", 80, 81}, {"gluteus medius", 82, 83}};
+  for (const auto& m : muscles) {
+    const RigidFitScore f = rigidFitOfMirror(labels, m.from, m.to, midX);
+    std::printf("  %-16s mirrored left label vs right: Dice %.3f, after its best rigid fit %.3f (%.2f deg, %.2f mm)\n",
+                m.name, f.mirrorDice, f.fittedDice, f.rotationDeg, f.centroidMoveMm);
+    EXPECT_GE(f.fittedDice, f.mirrorDice - 0.005) << m.name;
+    EXPECT_LT(f.rotationDeg, 10.0) << m.name;
+    EXPECT_LT(f.centroidMoveMm, 15.0) << m.name;
+    if (m.to == 83) {
+      EXPECT_LT(f.fittedDice, 0.88) << "the sides now agree: the gluteus medius' 0.88 may be in reach";
+      // The CT scene with no displacement and the gluteus medius template started at that fitted pose.
+      const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
+      std::vector<ObjectSpec> specs = {{"femur_right", 76, 75, msk::ObjectKind::Bone},
+                                       {"hip_right", 78, 77, msk::ObjectKind::Bone},
+                                       {"gluteus_maximus_right", 81, 80, msk::ObjectKind::Muscle},
+                                       {"gluteus_medius_right", 83, 82, msk::ObjectKind::Muscle, f.pose}};
+      RealScene rs = makeScene(ct, labels, specs, midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, 0.0);
+      rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;
+      msk::SegmentOptions opts;
+      opts.priorEnd = 0.2;
+      opts.rangeFine = 1.0;
+      opts.sigmaFine = 1.0;
+      const SceneScore sc = runScene(rs, opts);
+      printScore("totalseg-ct scene, not displaced, the gluteus medius template at its fitted pose", rs, sc);
+      EXPECT_GT(sc.objects[3].after.dice, sc.objects[3].before.dice);
+      EXPECT_EQ(sc.overlapVoxels, 0u);
+    }
+  }
 }
