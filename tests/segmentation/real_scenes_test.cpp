@@ -334,8 +334,10 @@ RealScene mrScene(const std::string& data, int vertices = 3000) {
 }
 
 /// totalseg-ct, right side: femur 76, hip bone 78, gluteus maximus 81 and medius 83, each from the left label,
-/// mirrored across the sagittal plane through the sacrum's centroid (25); every pair may touch.
-RealScene ctScene(const std::string& data, int vertices = 3000) {
+/// mirrored across the sagittal plane through the sacrum's centroid (25); every pair may touch. `mediusPose`: a rigid
+/// motion of the mirrored gluteus medius template before its displacement.
+RealScene ctScene(const std::string& data, double displacementMm = kDisplacementMm,
+                  const Eigen::Matrix4d& mediusPose = Eigen::Matrix4d::Identity()) {
   const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
   const double midX = msk::test::labelCentroid(labels, 25).x();
@@ -343,8 +345,19 @@ RealScene ctScene(const std::string& data, int vertices = 3000) {
                    {{"femur_right", 76, 75, msk::ObjectKind::Bone},
                     {"hip_right", 78, 77, msk::ObjectKind::Bone},
                     {"gluteus_maximus_right", 81, 80, msk::ObjectKind::Muscle},
-                    {"gluteus_medius_right", 83, 82, msk::ObjectKind::Muscle}},
-                   midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, vertices);
+                    {"gluteus_medius_right", 83, 82, msk::ObjectKind::Muscle, mediusPose}},
+                   midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, displacementMm);
+}
+
+/// Runs the CT scene as its test does: the two bones take the refinement pass, the global prior ends at λ = 0.2, the
+/// finest search reaches ± 1 voxel on an image smoothed at σ = 1 voxel.
+SceneScore runCtScene(RealScene& rs) {
+  rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // the bones
+  msk::SegmentOptions opts;
+  opts.priorEnd = 0.2;
+  opts.rangeFine = 1.0;
+  opts.sigmaFine = 1.0;
+  return runScene(rs, opts);
 }
 
 }  // namespace
@@ -383,12 +396,7 @@ TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   RealScene rs = ctScene(data);
-  rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // the bones
-  msk::SegmentOptions opts;
-  opts.priorEnd = 0.2;
-  opts.rangeFine = 1.0;
-  opts.sigmaFine = 1.0;
-  const SceneScore sc = runScene(rs, opts);
+  const SceneScore sc = runCtScene(rs);
   printScore("totalseg-ct: right femur, hip bone, gluteus maximus and medius", rs, sc);
   // Where the muscles' surfaces sit against their labels, by what lies outside them (README: the gluteus medius keeps
   // its template's pose toward its partners and the unlabelled soft tissue, where the image shows no boundary).
@@ -432,18 +440,8 @@ TEST(RealScenes, CtGlutealSidesBestRigidFit) {
     if (m.to == 83) {
       EXPECT_LT(f.fittedDice, 0.88) << "the sides now agree: the gluteus medius' 0.88 may be in reach";
       // The CT scene with no displacement and the gluteus medius template started at that fitted pose.
-      const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
-      std::vector<ObjectSpec> specs = {{"femur_right", 76, 75, msk::ObjectKind::Bone},
-                                       {"hip_right", 78, 77, msk::ObjectKind::Bone},
-                                       {"gluteus_maximus_right", 81, 80, msk::ObjectKind::Muscle},
-                                       {"gluteus_medius_right", 83, 82, msk::ObjectKind::Muscle, f.pose}};
-      RealScene rs = makeScene(ct, labels, specs, midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, 0.0);
-      rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;
-      msk::SegmentOptions opts;
-      opts.priorEnd = 0.2;
-      opts.rangeFine = 1.0;
-      opts.sigmaFine = 1.0;
-      const SceneScore sc = runScene(rs, opts);
+      RealScene rs = ctScene(data, 0.0, f.pose);
+      const SceneScore sc = runCtScene(rs);
       printScore("totalseg-ct scene, not displaced, the gluteus medius template at its fitted pose", rs, sc);
       EXPECT_GT(sc.objects[3].after.dice, sc.objects[3].before.dice);
       EXPECT_EQ(sc.overlapVoxels, 0u);
