@@ -89,6 +89,9 @@ struct SetCache {
   std::vector<double> alpha, beta;      ///< force-based: stiffness α and damping β of each row
   std::vector<Eigen::Vector3d> dir;     ///< force-based: unit force direction u of each row
   Points diff;                          ///< sets without rows: correction of a projection on a copy
+  const SimplexInternalBatch* sharesOf = nullptr;  ///< batch whose equalShares() `equalShares` holds (null: none)
+  std::uint64_t sharesLayout = 0;                  ///< ... at this row layout
+  bool equalShares = false;
 };
 
 /// Σ gj rj wj: the generalised inverse mass of a row.
@@ -170,6 +173,18 @@ struct Solver::Impl {
     return internal ? internal->batch() : nullptr;
   }
 
+  /// b.equalShares(w) of the batch of set `s`, kept until the inverse masses change (reset() clears the caches) or
+  /// the set's rows do (a pass over w per Jacobi iteration otherwise).
+  bool equalSharesOf(const ConstraintSet& s, const SimplexInternalBatch& b) {
+    SetCache& c = caches[s.uid()];
+    if (c.sharesOf != &b || c.sharesLayout != s.rowLayout()) {
+      c.sharesOf = &b;
+      c.sharesLayout = s.rowLayout();
+      c.equalShares = b.equalShares(w);
+    }
+    return c.equalShares;
+  }
+
   /// Writes the packed copy of the batch swept last (colouredSweep(), or Jacobi of a set alone with equal shares)
   /// back into p (its positions are newer than p's until then); every other reader of p calls this first.
   void storeResident() {
@@ -245,7 +260,7 @@ struct Solver::Impl {
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         std::atomic<int> skipped{0};
-        const bool alone = sets.size() == 1 && b->equalShares(w);
+        const bool alone = sets.size() == 1 && equalSharesOf(*s, *b);
         if (alone && pool.size() == 1) {
           skipped = b->jacobiEqualSharesPacked(opts.omega);  // bitwise the same as compute + applyEqualSharesPacked
           if (skipped == 0) fused = b;
