@@ -34,12 +34,15 @@ Eigen::Vector3d firstFreePosition(const Points& x, const Eigen::VectorXd& w) {
   return Eigen::Vector3d::Zero();
 }
 
-bool allFiniteLanes(const Points& a) {
+bool copyIfFinite(const Points& a, Points& b) {
   // x − x is 0 for finite x and NaN for ±∞ or NaN, so the sum stays 0 exactly when every coefficient is finite.
-  const double* d = a.data();
+  b.resize(a.rows(), 3);
+  const double* from = a.data();
+  double* to = b.data();
   Lanes acc = Lanes::Zero();
   forLaneBlocks(static_cast<int>(a.size()), [&](int i, auto k) {
-    const Lanes l = loadLanes(d, i, k);
+    const Lanes l = loadLanes(from, i, k);
+    storeLanes(l, to, i, k);
     acc += l - l;
   });
   return acc.sum() == 0;

@@ -211,7 +211,7 @@ void applyRigidDamping(const RigidMotion* motion, const Points& x, const Weights
   });
 }
 
-/// True if every coefficient of `a` is finite.
-bool allFiniteLanes(const Points& a);
+/// Copies `a` into `b` (resized to it) in a pass that checks it: true if every coefficient is finite.
+bool copyIfFinite(const Points& a, Points& b);
 
 }  // namespace msk

@@ -110,7 +110,9 @@ struct Solver::Impl {
   SolverOptions opts;
   WorkerPool pool;
   Points x, v, p, force, scratch;
-  Points x0, v0;  ///< state before the step, restored if it fails (buffers kept from step to step)
+  Points x0, v0;             ///< state before the step, restored if it fails (buffers kept from step to step)
+  Points v1;                 ///< the next step's v0, copied by the current step's last check of v
+  bool backupValid = false;  ///< v0 holds the current v (set by a completed step, cleared by reset() and failures)
   Eigen::VectorXd w, fallbackK;
   ParticleWeights weights;  ///< masses and free flags from w (set by reset())
   Eigen::VectorXi counts;
@@ -635,6 +637,7 @@ void Solver::reset(const Points& positions, const Eigen::VectorXd& inverseMass) 
   impl_->w = inverseMass;
   impl_->weights.assign(inverseMass);
   impl_->v = Points::Zero(positions.rows(), 3);
+  impl_->backupValid = false;
   impl_->caches.clear();
 }
 
@@ -643,31 +646,38 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   const double h = m.opts.dt / m.opts.substeps;
   const int n = static_cast<int>(m.x.rows());
   // A single position-based substep leaves x untouched until the velocity update, which the closing pass below does:
-  // the positions before the step stay in x (in p once the new ones are swapped in). Otherwise they are copied.
+  // the positions before the step stay in x (in p once the new ones are swapped in). Otherwise they are copied. The
+  // velocities before the step are in v0, copied by the previous step's last check (or here after a reset or failure).
   const bool single = m.opts.substeps == 1 && m.opts.scheme != Scheme::Explicit && m.opts.scheme != Scheme::Implicit;
-  m.v0 = m.v;  // same size from step to step: no allocation
+  if (!m.backupValid) m.v0 = m.v;  // same size from step to step: no allocation
   if (!single) m.x0 = m.x;
-  m.cgIterations = 0;
-  m.cgResidual = 0;
-  for (int s = 0; s < m.opts.substeps; ++s) {
-    const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
-    switch (m.opts.scheme) {
-      case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
-      case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
-      default: m.positionSubstep(sets, h, velocities, !single); break;
-    }
-  }
+  m.backupValid = false;
   bool swapped = false;  // single: x holds the new positions, p the old ones
-  auto fail = [&] {
-    if (single) {
-      if (swapped) m.x.swap(m.p);
-    } else {
-      m.x.swap(m.x0);
-    }
+  auto restore = [&] {   // the state before the step
+    if (!single) m.x.swap(m.x0);
+    else if (swapped) m.x.swap(m.p);
     m.v.swap(m.v0);
+  };
+  auto fail = [&] {
+    restore();
     throw Error("numerical failure: non-finite position after " + schemeName(m.opts.scheme) + " step " +
                 std::to_string(m.steps + 1));
   };
+  m.cgIterations = 0;
+  m.cgResidual = 0;
+  try {
+    for (int s = 0; s < m.opts.substeps; ++s) {
+      const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
+      switch (m.opts.scheme) {
+        case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
+        case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
+        default: m.positionSubstep(sets, h, velocities, !single); break;
+      }
+    }
+  } catch (...) {  // a set's exception: v may hold the prediction
+    restore();
+    throw;
+  }
   // One pass: velocity update (single), finiteness of x and v, largest displacement, the damping's moments.
   const bool damp = m.opts.damping > 0 && n > 0;
   RigidMoments moments(damp ? firstFreePosition(single ? m.p : m.x, m.w) : Eigen::Vector3d::Zero());
@@ -689,8 +699,15 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   applyRigidDamping(moving ? &motion : nullptr, m.x, m.weights, m.opts.damping, m.opts.drag, m.v);
   // Velocity corrections (collision response in velocity mode) come after the damping, so that the velocities the
   // next prediction uses are the corrected ones.
-  m.velocityPass(sets, h);
-  if (!allFiniteLanes(m.v)) fail();
+  try {
+    m.velocityPass(sets, h);
+  } catch (...) {
+    restore();
+    throw;
+  }
+  if (!copyIfFinite(m.v, m.v1)) fail();  // the next step's revert state
+  m.v0.swap(m.v1);
+  m.backupValid = true;
   ++m.steps;
   return maxDisp;
 }
