@@ -12,7 +12,6 @@
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
-#include "msk/core/pbd_solver.h"
 #include "rigid_motion_damping.h"
 #include "worker_pool.h"
 
