@@ -96,7 +96,7 @@ class RigidMoments {
   explicit RigidMoments(const Eigen::Vector3d& reference) : ref_(reference) {}
   /// The reference point r0 (mm).
   const Eigen::Vector3d& reference() const { return ref_; }
-  /// Adds four rows: masses `m` (0 adds nothing: fixed particles, unused lanes), positions y = x − r0 and velocities v,
+  /// Adds kLanes rows: masses `m` (0 adds nothing: fixed particles, unused lanes), positions y = x − r0 and velocities v,
   /// one column each. (Hot loops add into a local copy, which the compiler keeps in registers.)
   EIGEN_ALWAYS_INLINE void add(const Lanes& m, const Lanes& y0, const Lanes& y1, const Lanes& y2, const Lanes& v0, const Lanes& v1,
            const Lanes& v2) {
