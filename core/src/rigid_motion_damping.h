@@ -45,9 +45,10 @@ inline void forLaneBlocks(int n, Body&& body) {
   if (i < n) body(i, n - i);
 }
 
-/// Per-particle factors of the lane loops (a weights provider: masses() and freeFlags()), from the inverse masses w (#V, ≥ 0): mass m = 1/w and free = 1 for free
-/// particles, both 0 for fixed ones (w = 0), so that loops weigh with them instead of branching on w. With equal
-/// masses (the usual case) loops use `uniformMass` and skip reading both arrays.
+/// Per-particle factors of the lane loops (a weights provider: masses() and freeFlags()), from the inverse masses w
+/// (#V, ≥ 0): mass m = 1/w and free = 1 for free particles, both 0 for fixed ones (w = 0), so that loops weigh with
+/// them instead of branching on w. With equal masses (the usual case) loops use `uniformMass` and skip reading both
+/// arrays.
 struct ParticleWeights {
   Eigen::VectorXd mass, free;
   double uniformMass = 0;  ///< the mass of every particle if all are free with equal w, else 0
@@ -58,7 +59,9 @@ struct ParticleWeights {
     uniformMass = w.size() > 0 && w[0] > 0 && (w.array() == w[0]).all() ? mass[0] : 0.0;
   }
   /// Masses of rows [i, i + k), 0 for fixed particles and lanes from k on.
-  Lanes masses(int i, int k) const { return uniformMass > 0 ? firstLanes(uniformMass, k) : loadLanes(mass.data(), i, k); }
+  Lanes masses(int i, int k) const {
+    return uniformMass > 0 ? firstLanes(uniformMass, k) : loadLanes(mass.data(), i, k);
+  }
   /// Free flags of rows [i, i + k) (1 free, 0 fixed or lanes from k on).
   Lanes freeFlags(int i, int k) const { return uniformMass > 0 ? firstLanes(1.0, k) : loadLanes(free.data(), i, k); }
   /// `value` in lanes [0, k), 0 in the others.
@@ -96,10 +99,10 @@ class RigidMoments {
   explicit RigidMoments(const Eigen::Vector3d& reference) : ref_(reference) {}
   /// The reference point r0 (mm).
   const Eigen::Vector3d& reference() const { return ref_; }
-  /// Adds kLanes rows: masses `m` (0 adds nothing: fixed particles, unused lanes), positions y = x − r0 and velocities v,
-  /// one column each. (Hot loops add into a local copy, which the compiler keeps in registers.)
-  EIGEN_ALWAYS_INLINE void add(const Lanes& m, const Lanes& y0, const Lanes& y1, const Lanes& y2, const Lanes& v0, const Lanes& v1,
-           const Lanes& v2) {
+  /// Adds kLanes rows: masses `m` (0 adds nothing: fixed particles, unused lanes), positions y = x − r0 and velocities
+  /// v, one column each. (Hot loops add into a local copy, which the compiler keeps in registers.)
+  EIGEN_ALWAYS_INLINE void add(const Lanes& m, const Lanes& y0, const Lanes& y1, const Lanes& y2, const Lanes& v0,
+                               const Lanes& v1, const Lanes& v2) {
     const Lanes my0 = m * y0, my1 = m * y1, my2 = m * y2;
     m_ += m;
     s0_ += my0;
@@ -151,7 +154,7 @@ bool closeStep(const Points& x1, const Points& xBefore, Points& vel, double h, c
   int exponent = 0;
   const double invH = 1.0 / h;
   const bool exact = std::frexp(h, &exponent) == 0.5 && std::isfinite(invH);
-  RigidMoments sums = moments;                      // local: kept in registers
+  RigidMoments sums = moments;                     // local: kept in registers
   Lanes bad = Lanes::Zero(), far = Lanes::Zero();  // Σ (a − a) over the checked values; largest |Δx|² per lane
   forLaneBlocks(n, [&](int i, auto k) {
     const Lanes x0 = loadLanes(a0, i, k), x1 = loadLanes(a1, i, k), x2 = loadLanes(a2, i, k);
