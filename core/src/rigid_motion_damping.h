@@ -50,13 +50,18 @@ inline void forLaneBlocks(int n, Body&& body) {
 /// them instead of branching on w. With equal masses (the usual case) loops use `uniformMass` and skip reading both
 /// arrays.
 struct ParticleWeights {
-  Eigen::VectorXd mass, free;
-  double uniformMass = 0;  ///< the mass of every particle if all are free with equal w, else 0
+  Eigen::VectorXd mass, free;  ///< per particle; empty with uniformMass
+  double uniformMass = 0;      ///< the mass of every particle if all are free with equal w, else 0
   /// Computes the factors from `w`.
   void assign(const Eigen::VectorXd& w) {
+    uniformMass = w.size() > 0 && w[0] > 0 && (w.array() == w[0]).all() ? 1.0 / w[0] : 0.0;
+    if (uniformMass > 0) {  // the arrays are not read
+      mass.resize(0);
+      free.resize(0);
+      return;
+    }
     mass = (w.array() > 0).select(w.array().inverse(), 0.0);
     free = (w.array() > 0).cast<double>();
-    uniformMass = w.size() > 0 && w[0] > 0 && (w.array() == w[0]).all() ? mass[0] : 0.0;
   }
   /// Masses of rows [i, i + k), 0 for fixed particles and lanes from k on.
   Lanes masses(int i, int k) const {
