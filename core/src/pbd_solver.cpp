@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include "msk/core/error.h"
+#include "rigid_motion_damping.h"
 
 namespace msk {
 
@@ -32,46 +33,6 @@ void PbdSolver::reset(const Points& positions, const Eigen::VectorXd& inverseMas
   v_ = Points::Zero(positions.rows(), 3);
 }
 
-void dampTowardRigidMotion(const Points& x, const Eigen::VectorXd& w, double damping, double drag, Points& v) {
-  // Momentum-preserving damping (PBD survey §4.1.2, Müller et al. 2007): pull each velocity toward the rigid-body
-  // velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum unchanged.
-  const int n = static_cast<int>(x.rows());
-  if (damping > 0 && n > 0) {
-    double msum = 0;
-    Eigen::Vector3d xcm = Eigen::Vector3d::Zero(), vcm = Eigen::Vector3d::Zero();
-    for (int i = 0; i < n; ++i) {
-      if (w[i] <= 0) continue;
-      const double m = 1.0 / w[i];
-      msum += m;
-      xcm += m * x.row(i).transpose();
-      vcm += m * v.row(i).transpose();
-    }
-    if (msum > 0) {
-      xcm /= msum;
-      vcm /= msum;
-      Eigen::Vector3d l = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
-      for (int i = 0; i < n; ++i) {
-        if (w[i] <= 0) continue;
-        const double m = 1.0 / w[i];
-        const Eigen::Vector3d r = x.row(i).transpose() - xcm;
-        l += m * r.cross(v.row(i).transpose());
-        inertia += m * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
-      }
-      Eigen::Vector3d omega = Eigen::Vector3d::Zero();
-      Eigen::FullPivLU<Eigen::Matrix3d> lu(inertia);
-      if (lu.isInvertible()) omega = lu.solve(l);
-      for (int i = 0; i < n; ++i) {
-        if (w[i] <= 0) continue;
-        const Eigen::Vector3d r = x.row(i).transpose() - xcm;
-        const Eigen::Vector3d rigid = vcm + omega.cross(r);
-        v.row(i) += damping * (rigid.transpose() - v.row(i));
-      }
-    }
-  }
-  if (drag > 0) v *= (1.0 - drag);
-}
-
 double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
   const double dt = opts_.dt;
   for (ConstraintSet* s : sets) s->correctBeforePrediction(x_, v_, w_, dt);  // acceleration-mode collision response
@@ -87,10 +48,19 @@ double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
     }
   }
   if (!p_.allFinite()) throw Error("numerical failure: non-finite position after PBD step " + std::to_string(steps_ + 1));
-  const double maxDisp = (p_ - x_).rowwise().norm().maxCoeff();
-  v_ = (p_ - x_) / dt;
+  // One pass: velocity update, largest displacement and the damping's moments (as Solver::step(), bit for bit).
+  const InverseMasses weights{w_};
+  const bool damp = opts_.damping > 0 && w_.size() > 0;
+  RigidMoments moments(damp ? firstFreePosition(p_, w_) : Eigen::Vector3d::Zero());
+  double maxDisp = 0;
+  if (damp)
+    closeStep<true, true>(p_, x_, v_, dt, weights, maxDisp, moments);
+  else
+    closeStep<true, false>(p_, x_, v_, dt, weights, maxDisp, moments);
   x_.swap(p_);
-  dampTowardRigidMotion(x_, w_, opts_.damping, opts_.drag, v_);
+  RigidMotion motion;
+  const bool moving = damp && moments.motion(motion);
+  applyRigidDamping(moving ? &motion : nullptr, x_, weights, opts_.damping, opts_.drag, v_);
   for (ConstraintSet* s : sets) s->correctVelocities(x_, v_, w_, dt);  // velocity-mode collision response
   ++steps_;
   return maxDisp;

@@ -12,6 +12,7 @@
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
+#include "rigid_motion_damping.h"
 #include "worker_pool.h"
 
 namespace msk {
@@ -87,6 +88,9 @@ struct SetCache {
   std::vector<double> alpha, beta;      ///< force-based: stiffness α and damping β of each row
   std::vector<Eigen::Vector3d> dir;     ///< force-based: unit force direction u of each row
   Points diff;                          ///< sets without rows: correction of a projection on a copy
+  const SimplexInternalBatch* sharesOf = nullptr;  ///< batch whose equalShares() `equalShares` holds (null: none)
+  std::uint64_t sharesLayout = 0;                  ///< ... at this row layout
+  bool equalShares = false;
 };
 
 /// Σ gj rj wj: the generalised inverse mass of a row.
@@ -105,7 +109,11 @@ struct Solver::Impl {
   SolverOptions opts;
   WorkerPool pool;
   Points x, v, p, force, scratch;
+  Points x0, v0;             ///< state before the step, restored if it fails (buffers kept from step to step)
+  Points v1;                 ///< the next step's v0, copied by the current step's last check of v
+  bool backupValid = false;  ///< v0 holds the current v (set by a completed step, cleared by reset() and failures)
   Eigen::VectorXd w, fallbackK;
+  ParticleWeights weights;  ///< masses and free flags from w (set by reset())
   Eigen::VectorXi counts;
   SimplexInternalBatch* resident = nullptr;  ///< batch whose packed copy is newer than p
   int steps = 0, cgIterations = 0;
@@ -164,6 +172,18 @@ struct Solver::Impl {
     if (!opts.batchKernels) return nullptr;
     auto* internal = dynamic_cast<SimplexInternalConstraints*>(&s);
     return internal ? internal->batch() : nullptr;
+  }
+
+  /// b.equalShares(w) of the batch of set `s`, kept until the inverse masses change (reset() clears the caches) or
+  /// the set's rows do (a pass over w per Jacobi iteration otherwise).
+  bool equalSharesOf(const ConstraintSet& s, const SimplexInternalBatch& b) {
+    SetCache& c = caches[s.uid()];
+    if (c.sharesOf != &b || c.sharesLayout != s.rowLayout()) {
+      c.sharesOf = &b;
+      c.sharesLayout = s.rowLayout();
+      c.equalShares = b.equalShares(w);
+    }
+    return c.equalShares;
   }
 
   /// Writes the packed copy of the batch swept last (colouredSweep(), or Jacobi of a set alone with equal shares)
@@ -241,7 +261,7 @@ struct Solver::Impl {
       if (SimplexInternalBatch* b = batchOf(*s)) {
         if (resident != b) pool.run(b->size(), [&](int lo, int hi) { b->loadRange(p, w, lo, hi); });
         std::atomic<int> skipped{0};
-        const bool alone = sets.size() == 1 && b->equalShares(w);
+        const bool alone = sets.size() == 1 && equalSharesOf(*s, *b);
         if (alone && pool.size() == 1) {
           skipped = b->jacobiEqualSharesPacked(opts.omega);  // bitwise the same as compute + applyEqualSharesPacked
           if (skipped == 0) fused = b;
@@ -358,14 +378,26 @@ struct Solver::Impl {
     }
   }
 
+  /// Predicts p = x + h v (x on fixed particles; no external forces: image forces enter as target constraints). The
+  /// prediction is written over v, which the substep's velocity update overwrites anyway (one pass whose stores go to
+  /// the lines it has just read), and then swapped into p; v is left holding p's former storage.
+  void predict(double h) {
+    for (int c = 0; c < 3; ++c) {
+      const double* xc = x.col(c).data();
+      double* vc = v.col(c).data();
+      forLaneBlocks(static_cast<int>(x.rows()), [&](int i, auto k) {  // fixed: x + 0 v = x (v is finite)
+        storeLanes(loadLanes(xc, i, k) + (h * weights.freeFlags(i, k)) * loadLanes(vc, i, k), vc, i, k);
+      });
+    }
+    p.swap(v);
+  }
+
   /// One position-based substep; `velocities`: run the sets' velocity passes at its end (the step's last substep
-  /// runs them after the damping instead).
-  void positionSubstep(const std::vector<ConstraintSet*>& sets, double h, bool velocities) {
+  /// runs them after the damping instead); without `update` it stops before the velocity update, leaving the new
+  /// positions in p and x unchanged (step() updates the velocities in its closing pass).
+  void positionSubstep(const std::vector<ConstraintSet*>& sets, double h, bool velocities, bool update = true) {
     beforePrediction(sets, h);
-    // Predict (no external forces: image forces enter as target constraints).
-    p = x + h * v;
-    for (int i = 0; i < w.size(); ++i)
-      if (w[i] <= 0) p.row(i) = x.row(i);
+    predict(h);
     if (opts.scheme == Scheme::Xpbd)
       for (ConstraintSet* s : sets)
         if (s->rowCount() > 0)
@@ -388,6 +420,7 @@ struct Solver::Impl {
       }
     }
     storeResident();
+    if (!update) return;
     v = (p - x) / h;
     x.swap(p);
     if (velocities) velocityPass(sets, h);
@@ -601,37 +634,79 @@ void Solver::reset(const Points& positions, const Eigen::VectorXd& inverseMass) 
     throw Error("solver: inverse masses must be finite and non-negative");
   impl_->x = positions;
   impl_->w = inverseMass;
+  impl_->weights.assign(inverseMass);
   impl_->v = Points::Zero(positions.rows(), 3);
+  impl_->backupValid = false;
   impl_->caches.clear();
 }
 
 double Solver::step(const std::vector<ConstraintSet*>& sets) {
   Impl& m = *impl_;
-  const Points x0 = m.x, v0 = m.v;
   const double h = m.opts.dt / m.opts.substeps;
-  m.cgIterations = 0;
-  m.cgResidual = 0;
-  for (int s = 0; s < m.opts.substeps; ++s) {
-    const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
-    switch (m.opts.scheme) {
-      case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
-      case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
-      default: m.positionSubstep(sets, h, velocities); break;
-    }
-  }
+  const int n = static_cast<int>(m.x.rows());
+  // A single position-based substep leaves x untouched until the velocity update, which the closing pass below does:
+  // the positions before the step stay in x (in p once the new ones are swapped in). Otherwise they are copied. The
+  // velocities before the step are in v0, copied by the previous step's last check (or here after a reset or failure).
+  const bool single = m.opts.substeps == 1 && m.opts.scheme != Scheme::Explicit && m.opts.scheme != Scheme::Implicit;
+  if (!m.backupValid) m.v0 = m.v;  // same size from step to step: no allocation
+  if (!single) m.x0 = m.x;
+  m.backupValid = false;
+  bool swapped = false;  // single: x holds the new positions, p the old ones
+  auto restore = [&] {   // the state before the step
+    if (!single) m.x.swap(m.x0);
+    else if (swapped) m.x.swap(m.p);
+    m.v.swap(m.v0);
+  };
   auto fail = [&] {
-    m.x = x0;
-    m.v = v0;
+    restore();
     throw Error("numerical failure: non-finite position after " + schemeName(m.opts.scheme) + " step " +
                 std::to_string(m.steps + 1));
   };
-  if (!m.x.allFinite() || !m.v.allFinite()) fail();
-  const double maxDisp = m.x.rows() > 0 ? (m.x - x0).rowwise().norm().maxCoeff() : 0.0;
-  dampTowardRigidMotion(m.x, m.w, m.opts.damping, m.opts.drag, m.v);
+  m.cgIterations = 0;
+  m.cgResidual = 0;
+  try {
+    for (int s = 0; s < m.opts.substeps; ++s) {
+      const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
+      switch (m.opts.scheme) {
+        case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
+        case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
+        default: m.positionSubstep(sets, h, velocities, !single); break;
+      }
+    }
+  } catch (...) {  // a set's exception: v may hold the prediction
+    restore();
+    throw;
+  }
+  // One pass: velocity update (single), finiteness of x and v, largest displacement, the damping's moments.
+  const bool damp = m.opts.damping > 0 && n > 0;
+  RigidMoments moments(damp ? firstFreePosition(single ? m.p : m.x, m.w) : Eigen::Vector3d::Zero());
+  double maxDisp = 0;
+  bool finite;
+  if (single)
+    finite = damp ? closeStep<true, true>(m.p, m.x, m.v, h, m.weights, maxDisp, moments)
+                  : closeStep<true, false>(m.p, m.x, m.v, h, m.weights, maxDisp, moments);
+  else
+    finite = damp ? closeStep<false, true>(m.x, m.x0, m.v, h, m.weights, maxDisp, moments)
+                  : closeStep<false, false>(m.x, m.x0, m.v, h, m.weights, maxDisp, moments);
+  if (!finite) fail();
+  if (single) {
+    m.x.swap(m.p);
+    swapped = true;
+  }
+  RigidMotion motion;
+  const bool moving = damp && moments.motion(motion);
+  applyRigidDamping(moving ? &motion : nullptr, m.x, m.weights, m.opts.damping, m.opts.drag, m.v);
   // Velocity corrections (collision response in velocity mode) come after the damping, so that the velocities the
   // next prediction uses are the corrected ones.
-  m.velocityPass(sets, h);
-  if (!m.v.allFinite()) fail();
+  try {
+    m.velocityPass(sets, h);
+  } catch (...) {
+    restore();
+    throw;
+  }
+  if (!copyIfFinite(m.v, m.v1)) fail();  // the next step's revert state
+  m.v0.swap(m.v1);
+  m.backupValid = true;
   ++m.steps;
   return maxDisp;
 }
