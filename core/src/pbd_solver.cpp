@@ -50,20 +50,13 @@ double PbdSolver::step(const std::vector<ConstraintSet*>& sets) {
   if (!p_.allFinite()) throw Error("numerical failure: non-finite position after PBD step " + std::to_string(steps_ + 1));
   // One pass: velocity update, largest displacement and the damping's moments (as Solver::step(), bit for bit).
   const InverseMasses weights{w_};
-  const bool damp = opts_.damping > 0 && w_.size() > 0;
-  RigidMoments moments(damp ? firstFreePosition(p_, w_) : Eigen::Vector3d::Zero());
-  double maxDisp = 0;
-  if (damp)
-    closeStep<true, true>(p_, x_, v_, dt, weights, maxDisp, moments);
-  else
-    closeStep<true, false>(p_, x_, v_, dt, weights, maxDisp, moments);
+  const ClosedStep closed =
+      closeStepAndMoments<true>(p_, x_, v_, dt, weights, w_, opts_.damping > 0 && w_.size() > 0);
   x_.swap(p_);
-  RigidMotion motion;
-  const bool moving = damp && moments.motion(motion);
-  applyRigidDamping(moving ? &motion : nullptr, x_, weights, opts_.damping, opts_.drag, v_);
+  applyRigidDamping(closed.moving ? &closed.motion : nullptr, x_, weights, opts_.damping, opts_.drag, v_);
   for (ConstraintSet* s : sets) s->correctVelocities(x_, v_, w_, dt);  // velocity-mode collision response
   ++steps_;
-  return maxDisp;
+  return closed.maxDispMm;
 }
 
 }  // namespace msk

@@ -2,8 +2,6 @@
 
 #include <Eigen/Dense>
 
-#include "msk/core/pbd_solver.h"
-
 namespace msk {
 
 bool RigidMoments::motion(RigidMotion& out) const {
@@ -46,28 +44,6 @@ bool copyIfFinite(const Points& a, Points& b) {
     acc += l - l;
   });
   return acc.sum() == 0;
-}
-
-void dampTowardRigidMotion(const Points& x, const Eigen::VectorXd& w, double damping, double drag, Points& v) {
-  // Momentum-preserving damping (PBD survey §4.1.2, Müller et al. 2007): pull each velocity toward the rigid-body
-  // velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum unchanged. One pass
-  // sums the moments (about the first free particle), one applies the damping and the drag.
-  const int n = static_cast<int>(x.rows());
-  const InverseMasses weights{w};
-  RigidMotion motion;
-  bool moving = false;
-  if (damping > 0 && n > 0) {
-    const Eigen::Vector3d ref = firstFreePosition(x, w);
-    RigidMoments moments(ref);
-    const double *x0 = x.col(0).data(), *x1 = x.col(1).data(), *x2 = x.col(2).data();
-    const double *v0 = v.col(0).data(), *v1 = v.col(1).data(), *v2 = v.col(2).data();
-    forLaneBlocks(n, [&](int i, auto k) {
-      moments.add(weights.masses(i, k), loadLanes(x0, i, k) - ref[0], loadLanes(x1, i, k) - ref[1],
-                  loadLanes(x2, i, k) - ref[2], loadLanes(v0, i, k), loadLanes(v1, i, k), loadLanes(v2, i, k));
-    });
-    moving = moments.motion(motion);
-  }
-  applyRigidDamping(moving ? &motion : nullptr, x, weights, damping, drag, v);
 }
 
 }  // namespace msk

@@ -1,6 +1,7 @@
 #pragma once
-/// The momentum-preserving damping of dampTowardRigidMotion() (pbd_solver.h) split into its sums and its application,
-/// and the pass that closes a solver step (velocity update, finiteness, largest displacement, the damping's sums), so
+/// The momentum-preserving damping of the solvers (PBD survey §4.1.2, Müller et al. 2007: each velocity is pulled toward
+/// the rigid-body velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum unchanged)
+/// split into its sums and its application, and the pass that closes a solver step (velocity update, finiteness, largest displacement, the damping's sums), so
 /// that the solvers make as few passes over their particle arrays as possible (private to msk_core). The loops take
 /// kLanes rows at a time (Lanes; lanes of the last block beyond the rows are zero), each lane summing its own rows:
 /// the order of the additions depends on the row count only, never on the data or the thread count.
@@ -193,7 +194,28 @@ bool closeStep(const Points& x1, const Points& xBefore, Points& vel, double h, c
   return bad.sum() == 0;
 }
 
-/// The application pass of dampTowardRigidMotion(): v += damping (vcm + ω × (x − xcm) − v) on the free particles
+/// What closeStepAndMoments() found.
+struct ClosedStep {
+  bool finite = false;    ///< every new position and velocity is finite
+  double maxDispMm = 0;   ///< largest |x1 − x0|, mm
+  bool moving = false;    ///< `motion` holds the damping's rigid motion (damping asked for, some free mass)
+  RigidMotion motion;
+};
+
+/// closeStep() with, when `damp`, the damping's moments (about the first free particle of x1; `w` the inverse masses
+/// `weights` came from) and their rigid motion: the closing pass both solvers make.
+template <bool Update, class Weights>
+ClosedStep closeStepAndMoments(const Points& x1, const Points& xBefore, Points& vel, double h, const Weights& weights,
+                               const Eigen::VectorXd& w, bool damp) {
+  ClosedStep out;
+  RigidMoments moments(damp ? firstFreePosition(x1, w) : Eigen::Vector3d::Zero());
+  out.finite = damp ? closeStep<Update, true>(x1, xBefore, vel, h, weights, out.maxDispMm, moments)
+                    : closeStep<Update, false>(x1, xBefore, vel, h, weights, out.maxDispMm, moments);
+  out.moving = damp && moments.motion(out.motion);
+  return out;
+}
+
+/// The application pass of the momentum-preserving damping: v += damping (vcm + ω × (x − xcm) − v) on the free particles
 /// (flags of `weights`; none when `motion` is null), then v *= 1 − drag on every particle (drag > 0).
 template <class Weights>
 void applyRigidDamping(const RigidMotion* motion, const Points& x, const Weights& weights, double damping, double drag,

@@ -679,23 +679,14 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   }
   // One pass: velocity update (single), finiteness of x and v, largest displacement, the damping's moments.
   const bool damp = m.opts.damping > 0 && n > 0;
-  RigidMoments moments(damp ? firstFreePosition(single ? m.p : m.x, m.w) : Eigen::Vector3d::Zero());
-  double maxDisp = 0;
-  bool finite;
-  if (single)
-    finite = damp ? closeStep<true, true>(m.p, m.x, m.v, h, m.weights, maxDisp, moments)
-                  : closeStep<true, false>(m.p, m.x, m.v, h, m.weights, maxDisp, moments);
-  else
-    finite = damp ? closeStep<false, true>(m.x, m.x0, m.v, h, m.weights, maxDisp, moments)
-                  : closeStep<false, false>(m.x, m.x0, m.v, h, m.weights, maxDisp, moments);
-  if (!finite) fail();
+  const ClosedStep closed = single ? closeStepAndMoments<true>(m.p, m.x, m.v, h, m.weights, m.w, damp)
+                                   : closeStepAndMoments<false>(m.x, m.x0, m.v, h, m.weights, m.w, damp);
+  if (!closed.finite) fail();
   if (single) {
     m.x.swap(m.p);
     swapped = true;
   }
-  RigidMotion motion;
-  const bool moving = damp && moments.motion(motion);
-  applyRigidDamping(moving ? &motion : nullptr, m.x, m.weights, m.opts.damping, m.opts.drag, m.v);
+  applyRigidDamping(closed.moving ? &closed.motion : nullptr, m.x, m.weights, m.opts.damping, m.opts.drag, m.v);
   // Velocity corrections (collision response in velocity mode) come after the damping, so that the velocities the
   // next prediction uses are the corrected ones.
   try {
@@ -708,7 +699,7 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   m.v0.swap(m.v1);
   m.backupValid = true;
   ++m.steps;
-  return maxDisp;
+  return closed.maxDispMm;
 }
 
 const Points& Solver::positions() const { return impl_->x; }

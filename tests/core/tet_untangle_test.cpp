@@ -21,6 +21,16 @@ std::vector<char> interiorOf(const msk::TetMesh& m) {
 
 int inverted(const msk::TetMesh& m) { return static_cast<int>((msk::tetVolumes(m).array() <= 0).count()); }
 
+/// `rest` with each node flagged in `movable` moved by up to ± `amplitude` per axis (uniform, seeded).
+msk::TetMesh scrambled(const msk::TetMesh& rest, const std::vector<char>& movable, unsigned seed, double amplitude) {
+  msk::TetMesh m = rest;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-amplitude, amplitude);
+  for (int i = 0; i < m.nodeCount(); ++i)
+    if (movable[static_cast<size_t>(i)]) m.nodes.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  return m;
+}
+
 }  // namespace
 
 // Interior nodes of a 4^3 block scrambled by up to 0.9 of the cube edge (many tets inverted): the untangler moves
@@ -28,11 +38,7 @@ int inverted(const msk::TetMesh& m) { return static_cast<int>((msk::tetVolumes(m
 TEST(TetUntangle, ScrambledInteriorIsUntangled) {
   const msk::TetMesh rest = msk::makeCubeTets(4, 1.0);
   const std::vector<char> movable = interiorOf(rest);
-  msk::TetMesh m = rest;
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-0.9, 0.9);
-  for (int i = 0; i < m.nodeCount(); ++i)
-    if (movable[static_cast<size_t>(i)]) m.nodes.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  msk::TetMesh m = scrambled(rest, movable, 5, 0.9);
   const int before = inverted(m);
   ASSERT_GT(before, 10);
   const Eigen::VectorXd ref = msk::tetVolumes(rest);
@@ -167,11 +173,7 @@ TEST(TetUntangle, BoundaryPassStaysWithinReach) {
 TEST(TetUntangle, WorstShapesImprovedInside) {
   const msk::TetMesh rest = msk::makeCubeTets(4, 1.0);
   const std::vector<char> movable = interiorOf(rest);
-  msk::TetMesh m = rest;
-  std::mt19937 rng(8);
-  std::uniform_real_distribution<double> u(-0.3, 0.3);
-  for (int i = 0; i < m.nodeCount(); ++i)
-    if (movable[static_cast<size_t>(i)]) m.nodes.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  msk::TetMesh m = scrambled(rest, movable, 8, 0.3);
   ASSERT_GT(msk::tetVolumes(m).minCoeff(), 0.0);
   const double before = msk::tetShapeQualities(m).minCoeff();
   const double after = msk::improveWorstTetShapes(m, 0.3);

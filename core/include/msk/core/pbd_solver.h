@@ -19,11 +19,6 @@ struct PbdOptions {
   double drag = 0.5;        ///< ∈ [0,1]: share of the remaining velocity removed per step (1 = quasi-static)
 };
 
-/// Momentum-preserving velocity damping (PBD survey §4.1.2, Müller et al. 2007): pulls each free particle's velocity
-/// (rows of `v`) a share `damping` ∈ [0, 1] toward the rigid-body field v_cm + ω × r of the free particles at `x`
-/// (linear and angular momentum unchanged), then scales every velocity by (1 − drag). Inverse masses `w` (0 = fixed).
-void dampTowardRigidMotion(const Points& x, const Eigen::VectorXd& w, double damping, double drag, Points& v);
-
 /// Runs the position-based scheme on one particle system (sequential Gauss–Seidel; solver.h offers every scheme).
 class PbdSolver {
  public:
