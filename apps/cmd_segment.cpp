@@ -25,70 +25,23 @@ Json vec3(const Eigen::Vector3d& v) { return Json(Json::Array{v[0], v[1], v[2]})
 
 }  // namespace
 
-int cmdSegment(const std::vector<std::string>& argv) {
-  Args args(argv,
-            {"image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness",
-             "image-stiffness", "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "refine-sigma", "range-fine", "range-coarse", "range-coarse-extra", "edge-penalty", "far-target", "muscle-target-step", "mesh-space",
-             "collision-gap", "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
-             "iterations", "threads"},
-            {"help", "no-qc", "no-collisions", "edge-focusing", "edge-level", "refine", "axis-first"});
-  if (args.has("help")) {
-    std::cout
-        << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
-           "                      [--levels N] [--steps N] [--tolerance MM] [--internal-stiffness G]\n"
-           "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--prior-start L]\n"
-           "                      [--prior-end L] [--mesh-space lps|ras] [advanced options below]\n"
-           "                      [--no-collisions] [--collision-gap MM] [--friction MU] [--no-qc]\n\n"
-           "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
-           "its shape memory and a global shape prior; objects evolve together, and the scene's collision pairs\n"
-           "keep their surfaces apart (vertex-surface contacts, position correction shared with reduced masses).\n"
-           "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object;\n"
-           "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
-           "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
-           "  --quality   preset (default balanced): fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2\n"
-           "              substeps x 2 iterations; balanced = 2 x 50, 0.02, Gauss-Seidel 1 x 1; accurate = 3 x 200,\n"
-           "              0.004, XPBD 2 x 2, finest image scale 0.25 voxel instead of 0.5 (fast is ~10x quicker than\n"
-           "              accurate; see mskseg bench tradeoff)\n"
-           "              --levels/--steps/--tolerance/--scheme/--substeps/--iterations/--sigma-fine override it\n"
-           "  --scheme NAME   gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit\n"
-           "                  (default: the preset's; another scheme comes with the substeps x iterations\n"
-           "                  it needs: jacobi 1x2, xpbd 2x2 (k = 4, mass-relative), explicit 4x1, others 1x1)\n"
-           "  --substeps N, --iterations N   substeps per step and projection sweeps per substep (1..1000)\n"
-           "  --threads N     threads of the coloured, Jacobi and CG schemes (0 = all cores, default 1);\n"
-           "                  results do not depend on it\n"
-           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 1, 0.25)\n"
-           "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.1)\n"
-           "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
-           "  --collision-gap MM, --collision-proximity MM, --friction MU   contact gap, search reach beyond the\n"
-           "                    gap and friction (defaults 0.2 mm, max(1 mm, half the largest spacing), 0)\n"
-           "  --collision-resolution sequential|global   contacts of pairs without \"resolution\" in the scene:\n"
-           "                    projected one by one (default) or solved together by conjugate gradient\n"
-           "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
-           "advanced (relative to the voxel size, so they hold at any resolution):\n"
-           "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
-           "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
-           "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
-           "  --range-coarse-extra MM       the length added at the coarsest level (default 2)\n"
-           "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
-           "  --axis-first                  objects with a medial axis first move as a generalised cylinder\n"
-           "                                (the axis carries the surface; scene key \"axis_first\" per object wins)\n"
-           "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
-           "                                finest scale's edge next to it (a blurred thin bright shell, e.g.\n"
-           "                                CT cortex at 3 mm, shows its edge ~sigma too far out); default off\n"
-           "  --edge-level                  gradient force: an edge counts only where the intensity crosses\n"
-           "                                the object's level (midway between inside and outside at the\n"
-           "                                template) -- ignores edges of neighbouring boundaries; default off\n"
-           "  --refine                      one more pass at the finest level: each converged surface becomes\n"
-           "                                its own reference shape, pulled by the gradient force with the edge\n"
-           "                                level (the image's own edges place it); default off. For bones on\n"
-           "                                CT; scene key \"refine\" per object wins (others stay fixed)\n"
-           "  --refine-sigma                image scale of that pass, x smallest spacing (default 0.5)\n"
-           "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n"
-           "  --muscle-target-step E        a muscle's image target is at most E local edge lengths from its vertex\n"
-           "                                in a step (default 1; 0: no limit; bones are not limited)\n";
-    return 0;
-  }
-  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
+const std::set<std::string>& segmentValuedOptions() {
+  static const std::set<std::string> names = {
+      "image", "scene", "out", "quality", "levels", "steps", "tolerance", "internal-stiffness", "image-stiffness",
+      "prior", "prior-start", "prior-end", "sigma-fine", "sigma-coarse", "refine-sigma", "range-fine", "range-coarse",
+      "range-coarse-extra", "edge-penalty", "far-target", "muscle-target-step", "mesh-space", "collision-gap",
+      "collision-proximity", "friction", "collision-resolution", "separation-sweeps", "scheme", "substeps",
+      "iterations", "threads"};
+  return names;
+}
+
+const std::set<std::string>& segmentFlags() {
+  static const std::set<std::string> names = {"help",       "no-qc",  "no-collisions", "edge-focusing",
+                                              "edge-level", "refine", "axis-first"};
+  return names;
+}
+
+SegmentOptions segmentOptionsFrom(const Args& args) {
   SegmentOptions opts;
   opts.quality = parseQuality(args.str("quality", "balanced"));
   const long levels = args.integer("levels", 0), steps = args.integer("steps", 0);
@@ -159,11 +112,74 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (!(opts.collisionFriction >= 0 && opts.collisionFriction <= 1))
     throw ParameterError("--friction", args.str("friction"), "must be in [0, 1]");
   opts.priorTransform = parsePriorTransform(args.str("prior", "similarity"), "--prior");
-  const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));
   for (auto [name, v] : {std::pair{"--internal-stiffness", opts.internalStiffness},
                          std::pair{"--image-stiffness", opts.imageStiffness},
                          std::pair{"--prior-start", opts.priorStart}, std::pair{"--prior-end", opts.priorEnd}})
     if (!(v >= 0 && v <= 1)) throw ParameterError(name, std::to_string(v), "must be in [0, 1]");
+  return opts;
+}
+
+int cmdSegment(const std::vector<std::string>& argv) {
+  Args args(argv, segmentValuedOptions(), segmentFlags());
+  if (args.has("help")) {
+    std::cout
+        << "usage: mskseg segment --image IMG --scene SCENE.json --out DIR [--quality fast|balanced|accurate]\n"
+           "                      [--levels N] [--steps N] [--tolerance MM] [--internal-stiffness G]\n"
+           "                      [--image-stiffness G] [--prior rigid|similarity|affine] [--prior-start L]\n"
+           "                      [--prior-end L] [--mesh-space lps|ras] [advanced options below]\n"
+           "                      [--no-collisions] [--collision-gap MM] [--friction MU] [--no-qc]\n\n"
+           "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal,\n"
+           "its shape memory and a global shape prior; objects evolve together, and the scene's collision pairs\n"
+           "keep their surfaces apart (vertex-surface contacts, position correction shared with reduced masses).\n"
+           "Writes into DIR: <name>.vtk (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object;\n"
+           "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine),\n"
+           "report.json (parameters, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.\n"
+           "  --quality   preset (default balanced): fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2\n"
+           "              substeps x 2 iterations; balanced = 2 x 50, 0.02, Gauss-Seidel 1 x 1; accurate = 3 x 200,\n"
+           "              0.004, XPBD 2 x 2, finest image scale 0.25 voxel instead of 0.5 (fast is ~10x quicker than\n"
+           "              accurate; see mskseg bench tradeoff)\n"
+           "              --levels/--steps/--tolerance/--scheme/--substeps/--iterations/--sigma-fine override it\n"
+           "  --scheme NAME   gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit\n"
+           "                  (default: the preset's; another scheme comes with the substeps x iterations\n"
+           "                  it needs: jacobi 1x2, xpbd 2x2 (k = 4, mass-relative), explicit 4x1, others 1x1)\n"
+           "  --substeps N, --iterations N   substeps per step and projection sweeps per substep (1..1000)\n"
+           "  --threads N     threads of the coloured, Jacobi and CG schemes (0 = all cores, default 1);\n"
+           "                  results do not depend on it\n"
+           "  --internal-stiffness, --image-stiffness   gamma in [0,1] (defaults 1, 0.25)\n"
+           "  --prior-start, --prior-end   global shape prior weight, ramped linearly over the run (0.3 -> 0.1)\n"
+           "  --no-collisions   ignore the scene's collision pairs (objects may then overlap)\n"
+           "  --collision-gap MM, --collision-proximity MM, --friction MU   contact gap, search reach beyond the\n"
+           "                    gap and friction (defaults 0.2 mm, max(1 mm, half the largest spacing), 0)\n"
+           "  --collision-resolution sequential|global   contacts of pairs without \"resolution\" in the scene:\n"
+           "                    projected one by one (default) or solved together by conjugate gradient\n"
+           "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
+           "advanced (relative to the voxel size, so they hold at any resolution):\n"
+           "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
+           "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
+           "  --range-fine, --range-coarse  search range +- along the normal, x largest spacing (+2 mm coarse)\n"
+           "  --range-coarse-extra MM       the length added at the coarsest level (default 2)\n"
+           "  --edge-penalty                score lost per mm away from the vertex, relative to the best edge\n"
+           "  --axis-first                  objects with a medial axis first move as a generalised cylinder\n"
+           "                                (the axis carries the surface; scene key \"axis_first\" per object wins)\n"
+           "  --edge-focusing               gradient force at coarse levels: relocate each edge found to the\n"
+           "                                finest scale's edge next to it (a blurred thin bright shell, e.g.\n"
+           "                                CT cortex at 3 mm, shows its edge ~sigma too far out); default off\n"
+           "  --edge-level                  gradient force: an edge counts only where the intensity crosses\n"
+           "                                the object's level (midway between inside and outside at the\n"
+           "                                template) -- ignores edges of neighbouring boundaries; default off\n"
+           "  --refine                      one more pass at the finest level: each converged surface becomes\n"
+           "                                its own reference shape, pulled by the gradient force with the edge\n"
+           "                                level (the image's own edges place it); default off. For bones on\n"
+           "                                CT; scene key \"refine\" per object wins (others stay fixed)\n"
+           "  --refine-sigma                image scale of that pass, x smallest spacing (default 0.5)\n"
+           "  --far-target MM               a target d mm away pulls with weight 1/(1+(d/MM)^2) (default 0: off)\n"
+           "  --muscle-target-step E        a muscle's image target is at most E local edge lengths from its vertex\n"
+           "                                in a step (default 1; 0: no limit; bones are not limited)\n";
+    return 0;
+  }
+  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
+  const SegmentOptions opts = segmentOptionsFrom(args);
+  const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));
 
   const std::string imagePath = args.str("image"), scenePath = args.str("scene"), out = args.str("out");
   checkOutputFolder(out);

@@ -1,10 +1,13 @@
 #pragma once
 // The subcommands: each takes its arguments (after the command name) and returns the exit code.
 #include <functional>
+#include <set>
 #include <string>
 #include <vector>
 
+#include "args.h"
 #include "msk/core/log.h"
+#include "msk/segmentation/segmenter.h"
 
 namespace msk::cli {
 /// mskseg info FILE: a NIfTI volume's geometry and values, or a mesh file's summary.
@@ -21,7 +24,15 @@ int cmdConvert(const std::vector<std::string>& args);
 int cmdTemplate(const std::vector<std::string>& args);
 
 /// mskseg segment: evolve a scene's templates into an image.
+/// The options of `mskseg segment` that take a value, and those that do not (the batch checks its forwarded ones).
+const std::set<std::string>& segmentValuedOptions();
+/// See segmentValuedOptions().
+const std::set<std::string>& segmentFlags();
+/// The segmentation settings of a `mskseg segment` command line; throws ParameterError or UsageError for a bad one.
+SegmentOptions segmentOptionsFrom(const Args& args);
 int cmdSegment(const std::vector<std::string>& args);
+/// mskseg batch: one scene segmented in every case of a cohort folder, each case in a process of its own.
+int cmdBatch(const std::vector<std::string>& args);
 /// mskseg bench: benchmarks printing figures, one subcommand each (bench scene: multi-structure phantom scene).
 int cmdBench(const std::vector<std::string>& args);
 

@@ -1,0 +1,377 @@
+// mskseg batch: one scene segmented in every case of a cohort folder. Each case runs `mskseg segment` in a child
+// process of its own (a crash or an out-of-memory in one case ends that case only), its output folder appearing
+// whole or not at all; a rerun skips the cases already done, so an interrupted overnight batch resumes where it
+// stopped. The summary table is rewritten (atomically) as each case ends.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "args.h"
+#include "commands.h"
+#include "msk/core/atomic_file.h"
+#include "msk/core/error.h"
+#include "msk/core/json.h"
+#include "msk/core/log.h"
+#include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/metrics.h"
+
+namespace fs = std::filesystem;
+
+namespace msk::cli {
+namespace {
+
+/// One object's scores against the case's reference labels.
+struct ObjectScore {
+  std::string name;
+  int label = 0;
+  double dice = 0, assdMm = 0, hd95Mm = 0;
+};
+
+/// One case: where it reads and writes, and how it ended.
+struct Case {
+  std::string name, image, scene, out, log;
+  std::string status = "pending";  // ok | failed | done (by an earlier run) | skipped (no image) | pending
+  std::string message;
+  int exitCode = -1;
+  double seconds = 0, peakRssMiB = 0;
+  std::vector<ObjectScore> scores;
+};
+
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+  return q + "\"";
+}
+
+std::string fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+/// The last line of the case's log that reports an error (what `mskseg segment` printed before failing), else its
+/// last non-empty line.
+std::string errorLine(const std::string& logPath) {
+  std::ifstream in(logPath);
+  std::string line, lastError, last;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    last = line;
+    if (line.find("error") != std::string::npos) lastError = line;
+  }
+  return lastError.empty() ? last : lastError;
+}
+
+/// Scores each object of a finished case (the names and labels its report lists) against the reference label map.
+void scoreCase(Case& c, const std::string& referencePath) {
+  if (!fs::exists(referencePath)) {
+    c.message = "no reference " + fs::path(referencePath).filename().string();
+    return;
+  }
+  try {
+    const Json report = Json::readFile(c.out + "/report.json");
+    const LabelMap result = readNifti<int32_t>(c.out + "/labels.nii.gz");
+    const LabelMap reference = readNifti<int32_t>(referencePath);
+    for (const Json& o : report.at("objects").asArray()) {
+      ObjectScore s;
+      s.name = o.at("name").asString();
+      s.label = o.at("label").asInt();
+      const SegmentationMetrics m = labelMetrics(result, s.label, reference, s.label);
+      s.dice = m.dice;
+      s.assdMm = m.assd;
+      s.hd95Mm = m.hd95;
+      c.scores.push_back(s);
+    }
+  } catch (const std::exception& e) {
+    c.scores.clear();
+    c.message = std::string("not scored: ") + e.what();
+  }
+}
+
+void writeSummary(const std::string& out, const std::vector<Case>& cases, bool scored) {
+  writeAtomically(out + "/summary.csv", [&](const std::string& tmp) {
+    std::ofstream f(tmp);
+    f << "case,status,exit_code,seconds,peak_rss_mib,objects_scored,mean_dice,min_dice,message\n";
+    for (const Case& c : cases) {
+      double sum = 0, low = 1;
+      for (const ObjectScore& s : c.scores) {
+        sum += s.dice;
+        low = std::min(low, s.dice);
+      }
+      const bool has = !c.scores.empty();
+      f << csvField(c.name) << ',' << c.status << ',' << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ','
+        << (c.seconds > 0 ? fixed(c.seconds, 2) : "") << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ','
+        << c.scores.size() << ',' << (has ? fixed(sum / c.scores.size(), 4) : "") << ',' << (has ? fixed(low, 4) : "")
+        << ',' << csvField(c.message) << '\n';
+    }
+    if (!f.flush()) throw IoError(out + "/summary.csv", "cannot write");
+  });
+  if (!scored) return;
+  writeAtomically(out + "/metrics.csv", [&](const std::string& tmp) {
+    std::ofstream f(tmp);
+    f << "case,object,label,dice,assd_mm,hd95_mm\n";
+    for (const Case& c : cases)
+      for (const ObjectScore& s : c.scores)
+        f << csvField(c.name) << ',' << csvField(s.name) << ',' << s.label << ',' << fixed(s.dice, 4) << ','
+          << fixed(s.assdMm, 3) << ',' << fixed(s.hd95Mm, 3) << '\n';
+    if (!f.flush()) throw IoError(out + "/metrics.csv", "cannot write");
+  });
+}
+
+std::string isoTime(std::time_t t) {
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+/// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid.
+pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded) {
+  std::vector<std::string> args = {exe, "segment", "--image", c.image, "--scene", c.scene, "--out", c.out};
+  args.insert(args.end(), forwarded.begin(), forwarded.end());
+  std::vector<char*> cargs;
+  for (std::string& a : args) cargs.push_back(a.data());
+  cargs.push_back(nullptr);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  std::cout.flush();
+  std::cerr.flush();
+  const pid_t pid = fork();
+  if (pid < 0) throw Error("batch: cannot start a process for case " + c.name);
+  if (pid == 0) {
+    const int fd = ::open(c.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0 || ::dup2(fd, 1) < 0 || ::dup2(fd, 2) < 0) _exit(126);
+    ::close(fd);
+    ::execv(exe.c_str(), cargs.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+void say(const std::string& line) {
+  if (log::level() <= LogLevel::Info) std::cerr << "mskseg batch: " << line << std::endl;
+}
+
+}  // namespace
+
+int cmdBatch(const std::vector<std::string>& argvIn) {
+  // Everything after "--" goes to every case's `mskseg segment` as it is.
+  std::vector<std::string> argv, forwarded;
+  const auto dash = std::find(argvIn.begin(), argvIn.end(), std::string("--"));
+  argv.assign(argvIn.begin(), dash);
+  if (dash != argvIn.end()) forwarded.assign(dash + 1, argvIn.end());
+  Args args(argv, {"cases", "scene", "out", "image", "reference", "jobs"}, {"help", "redo"});
+  if (args.has("help")) {
+    std::cout
+        << "usage: mskseg batch --cases DIR --scene SCENE.json --out DIR [--image NAME] [--reference NAME]\n"
+           "                    [--jobs N] [--redo] [-- segment options]\n\n"
+           "Segments every case of a cohort with one scene: each subfolder of --cases holding the image NAME\n"
+           "(default image.nii.gz) is a case. A case folder's own scene.json, if present, replaces --scene for it.\n"
+           "Each case runs `mskseg segment` in a process of its own (a failing case ends alone) and writes\n"
+           "OUT/<case>/ (meshes, labels.nii.gz, report.json with every parameter, QC pictures), whole or not at\n"
+           "all; its log goes to OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists\n"
+           "(an interrupted batch resumes), unless --redo.\n"
+           "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, Dice, message),\n"
+           "rewritten as each case ends, OUT/metrics.csv with --reference, and OUT/batch.json (the command,\n"
+           "version, counts, times).\n"
+           "  --image NAME      the image file in each case folder (default image.nii.gz)\n"
+           "  --reference NAME  a label map in each case folder: each object's Dice, ASSD, HD95 against it,\n"
+           "                    for the object's label (OUT/metrics.csv)\n"
+           "  --jobs N          cases run at once (default 1; each case's --threads come after --)\n"
+           "  --redo            run the cases already done again\n"
+           "  -- OPTIONS        passed to every `mskseg segment`, e.g. -- --quality fast --no-qc\n"
+           "Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 for a usage error\n"
+           "(including one in the segment options, found on the first case: the batch then stops).\n";
+    return 0;
+  }
+  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
+  {  // the forwarded options, checked here: a mistake in them stops the batch before anything runs or is written
+    const Args segment(forwarded, segmentValuedOptions(), segmentFlags());
+    if (!segment.positional().empty())
+      throw UsageError("unexpected argument '" + segment.positional()[0] + "' after --");
+    for (const char* own : {"image", "scene", "out", "help"})
+      if (segment.has(own))
+        throw UsageError(std::string("option --") + own + " after --: the batch sets it for each case");
+    segmentOptionsFrom(segment);
+    parseMeshSpace(segment.str("mesh-space", "lps"));
+  }
+  const long jobs = args.integer("jobs", 1);
+  if (jobs < 1 || jobs > 64) throw ParameterError("--jobs", args.str("jobs"), "must be 1..64");
+  const std::string casesDir = args.str("cases"), out = args.str("out");
+  const std::string imageName = args.str("image", "image.nii.gz"), referenceName = args.str("reference", "");
+  const std::string scene = args.has("scene") ? fs::absolute(args.str("scene")).string() : "";
+  const bool redo = args.has("redo"), scored = !referenceName.empty();
+  std::error_code ec;
+  if (!fs::is_directory(casesDir, ec))
+    throw IoError(casesDir, fs::exists(casesDir, ec) ? "is not a folder" : "no such folder");
+  if (!scene.empty() && !fs::is_regular_file(scene, ec)) throw IoError(args.str("scene"), "no such file");
+  checkOutputFolder(out);
+  const fs::path outAbs = fs::absolute(out).lexically_normal();
+
+  // The cases: subfolders holding the image, in name order; hidden folders and the output folder are not cases.
+  std::vector<Case> cases;
+  std::vector<fs::path> folders;
+  for (const auto& e : fs::directory_iterator(casesDir, ec))
+    if (e.is_directory() && e.path().filename().string()[0] != '.' &&
+        fs::absolute(e.path()).lexically_normal() != outAbs)
+      folders.push_back(e.path());
+  if (ec) throw IoError(casesDir, "cannot list: " + ec.message());
+  std::sort(folders.begin(), folders.end());
+  int runnable = 0;
+  for (const fs::path& f : folders) {
+    Case c;
+    c.name = f.filename().string();
+    c.image = fs::absolute(f / imageName).string();
+    c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : scene;
+    c.out = (outAbs / c.name).string();
+    c.log = (outAbs / "logs" / (c.name + ".log")).string();
+    if (!fs::exists(c.image)) {
+      c.status = "skipped";
+      c.message = "no " + imageName;
+    } else if (c.scene.empty()) {
+      c.status = "failed";
+      c.message = "no scene: give --scene or put a scene.json in the case folder";
+      c.exitCode = 2;
+    } else {
+      ++runnable;
+    }
+    cases.push_back(c);
+  }
+  if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
+    throw IoError(casesDir, "no case: no subfolder holds " + imageName);
+  fs::create_directories(outAbs / "logs", ec);
+  if (ec) throw IoError((outAbs / "logs").string(), "cannot create folder: " + ec.message());
+
+  // Cases done by an earlier run keep their results (and get scored, so the summary covers the whole cohort).
+  std::vector<size_t> todo;
+  int doneEarlier = 0;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    Case& c = cases[i];
+    if (c.status != "pending") continue;
+    if (!redo && fs::exists(c.out + "/report.json")) {
+      c.status = "done";
+      ++doneEarlier;
+      if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
+    } else {
+      todo.push_back(i);
+    }
+  }
+  say(std::to_string(runnable) + " case(s) in " + casesDir +
+      (doneEarlier ? ", " + std::to_string(doneEarlier) + " done by an earlier run (--redo runs them again)"
+                   : std::string()) +
+      ", " + std::to_string(todo.size()) + " to run, " + std::to_string(jobs) + " at a time");
+  for (const Case& c : cases)
+    if (c.status == "skipped" || c.status == "failed") say(c.name + ": " + c.status + ": " + c.message);
+  writeSummary(outAbs.string(), cases, scored);
+
+  const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
+  if (ec) throw Error("batch: cannot find the mskseg program itself (/proc/self/exe)");
+  const std::time_t started = std::time(nullptr);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::map<pid_t, std::pair<size_t, std::chrono::steady_clock::time_point>> running;
+  size_t next = 0, finished = 0;
+  std::string usageError;
+  while (next < todo.size() || !running.empty()) {
+    while (usageError.empty() && next < todo.size() && static_cast<long>(running.size()) < jobs) {
+      const size_t i = todo[next++];
+      running[startCase(exe, cases[i], forwarded)] = {i, std::chrono::steady_clock::now()};
+    }
+    if (running.empty()) break;
+    int status = 0;
+    struct rusage ru {};
+    const pid_t pid = ::wait4(-1, &status, 0, &ru);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw Error("batch: lost track of the case processes");
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    Case& c = cases[it->second.first];
+    c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    running.erase(it);
+    ++finished;
+    c.peakRssMiB = static_cast<double>(ru.ru_maxrss) / 1024.0;
+    c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    if (WIFEXITED(status) && c.exitCode == 0) {
+      c.status = "ok";
+      if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
+    } else {
+      c.status = "failed";
+      c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +
+                                            (WTERMSIG(status) == SIGKILL ? " (out of memory?)" : "")
+                  : c.exitCode == 127 ? "could not run " + exe
+                                      : errorLine(c.log);
+      if (c.exitCode == 2 && usageError.empty()) usageError = c.name + ": " + c.message;
+    }
+    std::string line = "[" + std::to_string(finished) + "/" + std::to_string(todo.size()) + "] " + c.name + " " +
+                       c.status + " in " + fixed(c.seconds, 1) + " s, " + fixed(c.peakRssMiB, 0) + " MiB";
+    if (!c.scores.empty()) {
+      double sum = 0, low = 1;
+      for (const ObjectScore& s : c.scores) {
+        sum += s.dice;
+        low = std::min(low, s.dice);
+      }
+      line += ", Dice mean " + fixed(sum / c.scores.size(), 3) + " min " + fixed(low, 3);
+    }
+    if (!c.message.empty()) line += ": " + c.message;
+    if (c.status == "failed") line += " (log " + c.log + ")";
+    say(line);
+    writeSummary(outAbs.string(), cases, scored);
+  }
+  // A usage error in the forwarded options would fail every case alike: the batch stops at the first one.
+  if (!usageError.empty()) throw UsageError("case " + usageError);
+
+  int ok = 0, failed = 0, skipped = 0;
+  for (const Case& c : cases) {
+    ok += c.status == "ok";
+    failed += c.status == "failed";
+    skipped += c.status == "skipped";
+  }
+  Json j;
+  j["mskseg_version"] = MSK_VERSION;
+  Json cmd = Json::array();
+  cmd.push("mskseg");
+  cmd.push("batch");
+  for (const auto& a : argvIn) cmd.push(a);
+  j["command"] = cmd;
+  j["cases_folder"] = fs::absolute(casesDir).string();
+  j["scene"] = scene;
+  j["image_name"] = imageName;
+  if (scored) j["reference_name"] = referenceName;
+  Json fw = Json::array();
+  for (const auto& a : forwarded) fw.push(a);
+  j["segment_options"] = fw;
+  j["jobs"] = static_cast<int>(jobs);
+  j["started"] = isoTime(started);
+  j["finished"] = isoTime(std::time(nullptr));
+  j["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  Json counts;
+  counts["ok"] = ok;
+  counts["failed"] = failed;
+  counts["done_earlier"] = doneEarlier;
+  counts["skipped_no_image"] = skipped;
+  j["cases"] = counts;
+  j.writeFile(outAbs.string() + "/batch.json");
+  std::cout << "batch: " << ok << " ok, " << failed << " failed, " << doneEarlier << " done earlier, " << skipped
+            << " without " << imageName << " -> " << outAbs.string() << "/summary.csv\n";
+  return failed > 0 ? 1 : 0;
+}
+
+}  // namespace msk::cli

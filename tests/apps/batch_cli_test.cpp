@@ -1,0 +1,140 @@
+// mskseg batch end to end: every case of a cohort folder, per-case failures, resuming, the summary tables.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "msk/core/json.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+using msk::test::runCli;
+
+namespace {
+const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+
+std::string femurScene(const std::string& path, const std::string& name) {
+  msk::test::writeBytes(path, "{\"objects\": [{\"name\": \"" + name + "\", \"label\": 1, \"kind\": \"bone\", " +
+                                  "\"template\": \"" + kSample + "template_femur.vtk\"}]}");
+  return path;
+}
+
+/// A case folder holding the bundled sample's image and labels (links, not copies).
+void sampleCase(const std::string& dir) {
+  fs::create_directories(dir);
+  fs::create_symlink(kSample + "image.nii.gz", dir + "/image.nii.gz");
+  fs::create_symlink(kSample + "labels.nii.gz", dir + "/labels.nii.gz");
+}
+
+/// The rows of a CSV file (no quoted commas in the fields read here), header first.
+std::vector<std::vector<std::string>> csvRows(const std::string& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(msk::test::readBytes(path));
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> fields;
+    std::istringstream l(line);
+    std::string f;
+    while (std::getline(l, f, ',')) fields.push_back(f);
+    if (!line.empty() && line.back() == ',') fields.push_back("");
+    rows.push_back(fields);
+  }
+  return rows;
+}
+}  // namespace
+
+// Four folders: two good cases (one with its own scene.json), a truncated image, a folder without an image. The good
+// cases are segmented and scored, the bad one fails alone with the reader's message and leaves no output folder, the
+// empty one is listed; a rerun skips what is done and runs the repaired case.
+TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  sampleCase(cases + "/p01");
+  sampleCase(cases + "/p02");
+  femurScene(cases + "/p02/scene.json", "femur_own_scene");
+  fs::create_directories(cases + "/p03");
+  const std::string image = msk::test::readBytes(kSample + "image.nii.gz");
+  msk::test::writeBytes(cases + "/p03/image.nii.gz", image.substr(0, image.size() / 3));
+  fs::create_directories(cases + "/notes");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur");
+
+  const std::vector<std::string> args = {"batch", "--cases", cases,         "--scene",       scene,
+                                         "--out", out,       "--reference", "labels.nii.gz", "--jobs",
+                                         "2",     "--",      "--quality",   "fast",          "--no-qc"};
+  auto r = runCli(args);
+  EXPECT_EQ(r.exitCode, 1) << r.err;  // one case failed
+  EXPECT_NE(r.err.find("[3/3]"), std::string::npos) << "progress per case on stderr:\n" << r.err;
+  auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 5u);
+  EXPECT_EQ(rows[0][0], "case");
+  EXPECT_EQ(rows[1][0], "notes");
+  EXPECT_EQ(rows[1][1], "skipped");
+  for (size_t i : {2u, 3u}) {
+    EXPECT_EQ(rows[i][1], "ok") << rows[i][0];
+    EXPECT_EQ(rows[i][2], "0");
+    EXPECT_GT(std::stod(rows[i][6]), 0.95) << "mean Dice of " << rows[i][0];
+  }
+  EXPECT_EQ(rows[4][0], "p03");
+  EXPECT_EQ(rows[4][1], "failed");
+  EXPECT_EQ(rows[4][2], "1");
+  EXPECT_NE(rows[4][8].find("p03/image.nii.gz"), std::string::npos) << rows[4][8];
+  EXPECT_NE(rows[4][8].find("truncated"), std::string::npos) << rows[4][8];
+  EXPECT_TRUE(fs::exists(out + "/p01/report.json"));
+  EXPECT_TRUE(fs::exists(out + "/p02/femur_own_scene.vtk"));  // the case's own scene
+  EXPECT_FALSE(fs::exists(out + "/p03"));
+  EXPECT_TRUE(fs::exists(out + "/logs/p03.log"));
+  const auto metrics = csvRows(out + "/metrics.csv");
+  ASSERT_EQ(metrics.size(), 3u);
+  EXPECT_EQ(metrics[2][1], "femur_own_scene");
+  const msk::Json report = msk::Json::readFile(out + "/p01/report.json");
+  EXPECT_EQ(report.at("parameters").at("quality").asString(), "fast");  // the forwarded options reached the case
+  const msk::Json batch = msk::Json::readFile(out + "/batch.json");
+  EXPECT_EQ(batch.at("cases").at("ok").asInt(), 2);
+  EXPECT_EQ(batch.at("cases").at("failed").asInt(), 1);
+  EXPECT_EQ(batch.at("cases").at("skipped_no_image").asInt(), 1);
+
+  // Repair p03 and rerun: p01 and p02 are not run again (their results stay as they were), p03 now succeeds.
+  const auto written = fs::last_write_time(out + "/p01/report.json");
+  fs::remove(cases + "/p03/image.nii.gz");
+  fs::create_symlink(kSample + "image.nii.gz", cases + "/p03/image.nii.gz");
+  r = runCli(args);
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("2 done by an earlier run"), std::string::npos) << r.err;
+  EXPECT_EQ(fs::last_write_time(out + "/p01/report.json"), written);
+  rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 5u);
+  EXPECT_EQ(rows[2][1], "done");
+  EXPECT_GT(std::stod(rows[2][6]), 0.95) << "a case done earlier is still scored";
+  EXPECT_EQ(rows[4][1], "ok");
+  EXPECT_TRUE(fs::exists(out + "/p03/report.json"));
+}
+
+// A mistake in the batch's own options or in those it forwards to every case is one line, exit code 2 (1 for a
+// missing folder), before any case runs or anything is written.
+TEST(BatchCli, BadOptionsStopBeforeAnythingIsWritten) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  sampleCase(cases + "/p01");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur");
+  auto check = [&](std::vector<std::string> extra, int code, const std::string& phrase) {
+    std::vector<std::string> args = {"batch", "--cases", cases, "--scene", scene, "--out", out};
+    args.insert(args.end(), extra.begin(), extra.end());
+    msk::test::expectOneLineError(runCli(args), code, "", phrase);
+    EXPECT_FALSE(fs::exists(out)) << phrase;
+  };
+  check({"--", "--quality", "ultra"}, 2, "ultra");
+  check({"--", "--internal-stiffness", "-1"}, 2, "--internal-stiffness");
+  check({"--", "--out", dir.file("x")}, 2, "--out");
+  check({"--", "--no-such-option"}, 2, "--no-such-option");
+  check({"--jobs", "0"}, 2, "--jobs");
+  msk::test::expectOneLineError(runCli({"batch", "--cases", dir.file("none"), "--scene", scene, "--out", out}), 1,
+                                "none", "no such folder");
+  msk::test::expectOneLineError(runCli({"batch", "--cases", cases, "--scene", dir.file("none.json"), "--out", out}), 1,
+                                "none.json", "no such file");
+  fs::create_directories(dir.file("empty"));
+  msk::test::expectOneLineError(runCli({"batch", "--cases", dir.file("empty"), "--scene", scene, "--out", out}), 1,
+                                "empty", "no case");
+  EXPECT_FALSE(fs::exists(out));
+}
