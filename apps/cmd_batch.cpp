@@ -52,6 +52,10 @@ struct Case {
   int exitCode = -1;
   double seconds = 0, peakRssMiB = 0;
   std::vector<ObjectScore> scores;
+  // Signs of trouble that need no reference, from the case's report.json (NaN: not read).
+  double worstResidualMm = std::nan("");       ///< largest mean image residual of an object
+  double worstVolumeChangePct = std::nan("");  ///< largest |volume / template volume − 1| of an object, %
+  double overlapVoxels = std::nan("");         ///< voxels inside two objects
 };
 
 std::string csvField(const std::string& s) {
@@ -67,6 +71,8 @@ std::string fixed(double v, int digits) {
   return buf;
 }
 
+std::string orEmpty(double v, int digits) { return std::isfinite(v) ? fixed(v, digits) : ""; }
+
 /// The last line of the case's log that reports an error (what `mskseg segment` printed before failing), else its
 /// last non-empty line.
 std::string errorLine(const std::string& logPath) {
@@ -78,6 +84,24 @@ std::string errorLine(const std::string& logPath) {
     if (line.find("error") != std::string::npos) lastError = line;
   }
   return lastError.empty() ? last : lastError;
+}
+
+/// Reads the reference-free checks of a finished case from its report.json (left NaN if it cannot be read).
+void readChecks(Case& c) {
+  try {
+    const Json report = Json::readFile(c.out + "/report.json");
+    double residual = 0, change = 0;
+    for (const Json& o : report.at("objects").asArray()) {
+      residual = std::max(residual, o.at("mean_image_residual_mm").asNumber());
+      const double v = o.at("volume_mm3").asNumber(), v0 = o.at("template_volume_mm3").asNumber();
+      if (v0 > 0) change = std::max(change, 100.0 * std::abs(v / v0 - 1.0));
+    }
+    c.worstResidualMm = residual;
+    c.worstVolumeChangePct = change;
+    c.overlapVoxels = report.at("overlap_voxels").asNumber();
+  } catch (const std::exception& e) {
+    c.message = std::string("report not read: ") + e.what();
+  }
 }
 
 /// Scores each object of a finished case (the names and labels its report lists) against the reference label map.
@@ -109,7 +133,8 @@ void scoreCase(Case& c, const std::string& referencePath) {
 void writeSummary(const std::string& out, const std::vector<Case>& cases, bool scored) {
   writeAtomically(out + "/summary.csv", [&](const std::string& tmp) {
     std::ofstream f(tmp);
-    f << "case,status,exit_code,seconds,peak_rss_mib,objects_scored,mean_dice,min_dice,message\n";
+    f << "case,status,exit_code,seconds,peak_rss_mib,max_residual_mm,max_volume_change_pct,overlap_voxels,"
+         "objects_scored,mean_dice,min_dice,message\n";
     for (const Case& c : cases) {
       double sum = 0, low = 1;
       for (const ObjectScore& s : c.scores) {
@@ -119,8 +144,9 @@ void writeSummary(const std::string& out, const std::vector<Case>& cases, bool s
       const bool has = !c.scores.empty();
       f << csvField(c.name) << ',' << c.status << ',' << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ','
         << (c.seconds > 0 ? fixed(c.seconds, 2) : "") << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ','
-        << c.scores.size() << ',' << (has ? fixed(sum / c.scores.size(), 4) : "") << ',' << (has ? fixed(low, 4) : "")
-        << ',' << csvField(c.message) << '\n';
+        << orEmpty(c.worstResidualMm, 3) << ',' << orEmpty(c.worstVolumeChangePct, 2) << ','
+        << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ',' << (has ? fixed(sum / c.scores.size(), 4) : "")
+        << ',' << (has ? fixed(low, 4) : "") << ',' << csvField(c.message) << '\n';
     }
     if (!f.flush()) throw IoError(out + "/summary.csv", "cannot write");
   });
@@ -188,7 +214,9 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
            "OUT/<case>/ (meshes, labels.nii.gz, report.json with every parameter, QC pictures), whole or not at\n"
            "all; its log goes to OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists\n"
            "(an interrupted batch resumes), unless --redo.\n"
-           "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, Dice, message),\n"
+           "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, what needs no\n"
+           "reference to flag a doubtful case (largest mean image residual and volume change of an object,\n"
+           "voxels inside two objects), Dice, message),\n"
            "rewritten as each case ends, OUT/metrics.csv with --reference, and OUT/batch.json (the command,\n"
            "version, counts, times).\n"
            "  --image NAME      the image file in each case folder (default image.nii.gz)\n"
@@ -268,6 +296,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     if (!redo && fs::exists(c.out + "/report.json")) {
       c.status = "done";
       ++doneEarlier;
+      readChecks(c);
       if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
     } else {
       todo.push_back(i);
@@ -311,6 +340,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     if (WIFEXITED(status) && c.exitCode == 0) {
       c.status = "ok";
+      readChecks(c);
       if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
     } else {
       c.status = "failed";

@@ -74,13 +74,15 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   for (size_t i : {2u, 3u}) {
     EXPECT_EQ(rows[i][1], "ok") << rows[i][0];
     EXPECT_EQ(rows[i][2], "0");
-    EXPECT_GT(std::stod(rows[i][6]), 0.95) << "mean Dice of " << rows[i][0];
+    EXPECT_GT(std::stod(rows[i][5]), 0.0) << "the largest mean image residual, read from the case's report";
+    EXPECT_EQ(rows[i][7], "0") << "voxels inside two objects";
+    EXPECT_GT(std::stod(rows[i][9]), 0.95) << "mean Dice of " << rows[i][0];
   }
   EXPECT_EQ(rows[4][0], "p03");
   EXPECT_EQ(rows[4][1], "failed");
   EXPECT_EQ(rows[4][2], "1");
-  EXPECT_NE(rows[4][8].find("p03/image.nii.gz"), std::string::npos) << rows[4][8];
-  EXPECT_NE(rows[4][8].find("truncated"), std::string::npos) << rows[4][8];
+  EXPECT_NE(rows[4][11].find("p03/image.nii.gz"), std::string::npos) << rows[4][11];
+  EXPECT_NE(rows[4][11].find("truncated"), std::string::npos) << rows[4][11];
   EXPECT_TRUE(fs::exists(out + "/p01/report.json"));
   EXPECT_TRUE(fs::exists(out + "/p02/femur_own_scene.vtk"));  // the case's own scene
   EXPECT_FALSE(fs::exists(out + "/p03"));
@@ -106,7 +108,7 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   rows = csvRows(out + "/summary.csv");
   ASSERT_EQ(rows.size(), 5u);
   EXPECT_EQ(rows[2][1], "done");
-  EXPECT_GT(std::stod(rows[2][6]), 0.95) << "a case done earlier is still scored";
+  EXPECT_GT(std::stod(rows[2][9]), 0.95) << "a case done earlier is still scored";
   EXPECT_EQ(rows[4][1], "ok");
   EXPECT_TRUE(fs::exists(out + "/p03/report.json"));
 }
