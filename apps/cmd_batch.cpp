@@ -376,11 +376,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   }
   Json j;
   j["mskseg_version"] = MSK_VERSION;
-  Json cmd = Json::array();
-  cmd.push("mskseg");
-  cmd.push("batch");
-  for (const auto& a : argvIn) cmd.push(a);
-  j["command"] = cmd;
+  j["command"] = commandLineJson("batch", argvIn);
   j["cases_folder"] = fs::absolute(casesDir).string();
   j["scene"] = scene;
   j["image_name"] = imageName;

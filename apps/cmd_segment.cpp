@@ -191,11 +191,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   writeFolderAtomically(out, [&](const std::string& dir) {
     Json report;
     report["mskseg_version"] = MSK_VERSION;
-    Json cmd = Json::array();
-    cmd.push("mskseg");
-    cmd.push("segment");
-    for (const auto& a : argv) cmd.push(a);
-    report["command"] = cmd;
+    report["command"] = commandLineJson("segment", argv);
     report["image"] = fs::absolute(imagePath).string();
     report["scene"] = fs::absolute(scenePath).string();
     Json img;

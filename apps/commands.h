@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "args.h"
+#include "msk/core/json.h"
 #include "msk/core/log.h"
 #include "msk/segmentation/segmenter.h"
 
@@ -35,6 +36,9 @@ int cmdSegment(const std::vector<std::string>& args);
 int cmdBatch(const std::vector<std::string>& args);
 /// mskseg bench: benchmarks printing figures, one subcommand each (bench scene: multi-structure phantom scene).
 int cmdBench(const std::vector<std::string>& args);
+
+/// The command line as a JSON array ["mskseg", command, args...], for the results it produced.
+Json commandLineJson(const std::string& command, const std::vector<std::string>& args);
 
 /// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
 ProgressFn stderrProgress(const std::string& task);

@@ -14,6 +14,14 @@ namespace fs = std::filesystem;
 
 namespace msk::cli {
 
+Json commandLineJson(const std::string& command, const std::vector<std::string>& args) {
+  Json cmd = Json::array();
+  cmd.push("mskseg");
+  cmd.push(command);
+  for (const auto& a : args) cmd.push(a);
+  return cmd;
+}
+
 ProgressFn stderrProgress(const std::string& task) {
   struct State {
     std::string stage;
