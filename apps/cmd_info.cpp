@@ -2,6 +2,8 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
+#include <map>
 #include <sstream>
 
 #include "args.h"
@@ -35,7 +37,8 @@ std::string fmt(double v, int prec = 4) {
   return buf;
 }
 
-/// Three-letter orientation code (e.g. "RAS", "LPS") of the voxel axes: the dominant world axis of each direction column.
+/// Three-letter orientation code (e.g. "RAS", "LPS") of the voxel axes: the dominant world axis of each direction
+/// column.
 std::string orientationCode(const Eigen::Matrix3d& d) {
   std::string code;
   for (int c = 0; c < 3; ++c) {
@@ -48,12 +51,43 @@ std::string orientationCode(const Eigen::Matrix3d& d) {
   return code;
 }
 
-int infoVolume(const std::string& path, bool json) {
+/// Voxel count, volume, centroid and bounds (voxel centres, RAS mm) of one label of a label map.
+struct LabelStats {
+  long voxels = 0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+};
+
+/// Every non-zero label of `vol`; throws Error naming `path` if a value is not a whole number.
+std::map<long, LabelStats> labelStats(const Volume<double>& vol, const std::string& path) {
+  std::map<long, LabelStats> out;
+  const Grid& g = vol.grid;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const double v = vol.at(i, j, k);
+        if (!(v == std::floor(v)) || std::fabs(v) > 2147483647.0)
+          throw Error(path + ": --labels needs whole-number voxel values, voxel (" + std::to_string(i) + ", " +
+                      std::to_string(j) + ", " + std::to_string(k) + ") holds " + fmt(v, 4));
+        if (v == 0) continue;
+        LabelStats& st = out[static_cast<long>(v)];
+        const Eigen::Vector3d p = g.toWorld(Eigen::Vector3d(i, j, k));
+        ++st.voxels;
+        st.sum += p;
+        st.lo = st.lo.cwiseMin(p);
+        st.hi = st.hi.cwiseMax(p);
+      }
+  return out;
+}
+
+int infoVolume(const std::string& path, bool json, bool labels) {
   NiftiInfo info;
   NiftiReadOptions ro;
   ro.allowNonFinite = true;
   Volume<double> vol = readNifti<double>(path, &info, ro);
   const Grid& g = vol.grid;
+  const double voxelMl = g.spacing.prod() / 1000.0;
   if (json) {
     Json j;
     j["file"] = path;
@@ -74,6 +108,20 @@ int infoVolume(const std::string& path, bool json) {
     j["min"] = info.minValue;
     j["max"] = info.maxValue;
     j["nonfinite_count"] = static_cast<double>(info.nonFiniteCount);
+    if (labels) {
+      Json list = Json::array();
+      for (const auto& [label, st] : labelStats(vol, path)) {
+        Json l;
+        l["label"] = static_cast<double>(label);
+        l["voxels"] = static_cast<double>(st.voxels);
+        l["volume_ml"] = st.voxels * voxelMl;
+        l["centroid_ras_mm"] = vecJson(st.sum / static_cast<double>(st.voxels));
+        l["bounds_ras_min"] = vecJson(st.lo);
+        l["bounds_ras_max"] = vecJson(st.hi);
+        list.push(l);
+      }
+      j["labels"] = list;
+    }
     std::cout << j.dump(2) << "\n";
     return 0;
   }
@@ -84,8 +132,8 @@ int infoVolume(const std::string& path, bool json) {
     << " voxels)\n"
     << "spacing       " << fmt(g.spacing[0]) << " x " << fmt(g.spacing[1]) << " x " << fmt(g.spacing[2]) << " mm\n"
     << "orientation   " << orientationCode(g.direction) << " (voxel axes i, j, k point to)\n"
-    << "affine from   " << affineSourceName(info.affineSource) << "  (sform_code " << info.sformCode
-    << ", qform_code " << info.qformCode << ")\n"
+    << "affine from   " << affineSourceName(info.affineSource) << "  (sform_code " << info.sformCode << ", qform_code "
+    << info.qformCode << ")\n"
     << "voxel->RAS mm\n";
   Eigen::Matrix4d a = g.voxelToWorld();
   for (int r = 0; r < 3; ++r)
@@ -97,6 +145,21 @@ int infoVolume(const std::string& path, bool json) {
   if (info.scaled) o << "  (scaled: slope " << info.sclSlope << ", intercept " << info.sclInter << ")";
   o << "\nrange         " << info.minValue << " .. " << info.maxValue << "\n"
     << "NaN/Inf       " << info.nonFiniteCount << "\n";
+  if (labels) {
+    const std::map<long, LabelStats> stats = labelStats(vol, path);
+    o << "labels        " << stats.size() << " besides 0 (centroid x, y, z and bounds of the voxel centres, RAS mm)\n";
+    char line[256];
+    std::snprintf(line, sizeof line, "  %8s %10s %11s %9s %9s %9s   %s\n", "label", "voxels", "volume_mL", "x", "y",
+                  "z", "bounds x, y, z");
+    o << line;
+    for (const auto& [label, st] : stats) {
+      const Eigen::Vector3d c = st.sum / static_cast<double>(st.voxels);
+      std::snprintf(line, sizeof line, "  %8ld %10ld %11.3f %9.2f %9.2f %9.2f   %.1f..%.1f, %.1f..%.1f, %.1f..%.1f\n",
+                    label, st.voxels, st.voxels * voxelMl, c[0], c[1], c[2], st.lo[0], st.hi[0], st.lo[1], st.hi[1],
+                    st.lo[2], st.hi[2]);
+      o << line;
+    }
+  }
   std::cout << o.str();
   return 0;
 }
@@ -140,17 +203,24 @@ int infoMesh(const std::string& path, bool json) {
 }  // namespace
 
 int cmdInfo(const std::vector<std::string>& argv) {
-  Args args(argv, {}, {"help", "json"});
+  Args args(argv, {}, {"help", "json", "labels"});
   if (args.has("help")) {
-    std::cout << "usage: mskseg info FILE [--json]\n\n"
-                 "FILE is a NIfTI volume (.nii, .nii.gz): prints dims, spacing, the voxel->RAS affine and which header\n"
-                 "form it came from (sform, qform or pixdim), datatype and scaling, value range and NaN/Inf count;\n"
-                 "or a mesh (.vtk .vtp .stl .obj .ply): vertices, faces, volume, area, bounds and the file's space.\n";
+    std::cout
+        << "usage: mskseg info FILE [--json] [--labels]\n\n"
+           "FILE is a NIfTI volume (.nii, .nii.gz): prints dims, spacing, the voxel->RAS affine and which header\n"
+           "form it came from (sform, qform or pixdim), datatype and scaling, value range and NaN/Inf count;\n"
+           "or a mesh (.vtk .vtp .stl .obj .ply): vertices, faces, volume, area, bounds and the file's space.\n"
+           "--labels (a label map): each non-zero label's voxel count, volume, centroid and bounds (RAS mm),\n"
+           "e.g. to find the labels to put in a scene, or a midline landmark for --mirror-x.\n";
     return 0;
   }
   if (args.positional().size() != 1) throw UsageError("expected exactly one FILE");
   const std::string& path = args.positional()[0];
-  return isMeshFile(path) ? infoMesh(path, args.has("json")) : infoVolume(path, args.has("json"));
+  if (isMeshFile(path)) {
+    if (args.has("labels")) throw UsageError("--labels is for a label map, not a mesh");
+    return infoMesh(path, args.has("json"));
+  }
+  return infoVolume(path, args.has("json"), args.has("labels"));
 }
 
 }  // namespace msk::cli

@@ -69,6 +69,40 @@ TEST(Cli, InfoDescribesVolumeAndMesh) {
   EXPECT_NEAR(mj.at("volume_mm3").asNumber(), 4.0 / 3.0 * M_PI * 1000, 0.02 * 4.0 / 3.0 * M_PI * 1000);
 }
 
+// info --labels: each non-zero label's voxel count, volume and centroid in RAS mm (on a grid with spacing and origin),
+// in the text table and in JSON; a volume with fractional values is refused naming the file.
+TEST(Cli, InfoListsTheLabelsOfALabelMap) {
+  ScratchDir dir;
+  msk::Grid g;
+  g.dims = {6, 5, 4};
+  g.spacing = {1.0, 1.5, 2.0};
+  g.origin = {-3, 4, 5};
+  msk::Volume<double> v(g, 0.0);
+  v.at(1, 1, 1) = v.at(3, 1, 1) = 7;  // label 7: centroid at voxel (2, 1, 1)
+  v.at(5, 4, 3) = 300;                // label 300: one voxel
+  msk::writeNifti(dir.file("l.nii.gz"), v, msk::DataType::Int16);
+  CliResult r = runCli({"info", "--labels", dir.file("l.nii.gz")});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.out.find("2 besides 0"), std::string::npos) << r.out;
+  // label 7: 2 voxels of 3 mm3, centroid (-3 + 2, 4 + 1.5, 5 + 2) mm
+  EXPECT_NE(r.out.find("       7          2       0.006     -1.00      5.50      7.00"), std::string::npos) << r.out;
+  CliResult j = runCli({"info", "--json", "--labels", dir.file("l.nii.gz")});
+  ASSERT_EQ(j.exitCode, 0) << j.err;
+  const msk::Json info = msk::Json::parse(j.out);
+  const auto& labels = info.at("labels").asArray();
+  ASSERT_EQ(labels.size(), 2u);
+  EXPECT_EQ(labels[1].at("label").asInt(), 300);
+  EXPECT_EQ(labels[1].at("voxels").asInt(), 1);
+  EXPECT_DOUBLE_EQ(labels[1].at("centroid_ras_mm").asArray()[0].asNumber(), 2.0);
+  EXPECT_DOUBLE_EQ(labels[1].at("centroid_ras_mm").asArray()[1].asNumber(), 10.0);
+  EXPECT_DOUBLE_EQ(labels[1].at("centroid_ras_mm").asArray()[2].asNumber(), 11.0);
+  EXPECT_DOUBLE_EQ(labels[0].at("volume_ml").asNumber(), 0.006);
+
+  v.at(0, 0, 0) = 0.5;
+  msk::writeNifti(dir.file("f.nii.gz"), v, msk::DataType::Float32);
+  expectOneLineError(runCli({"info", "--labels", dir.file("f.nii.gz")}), 1, "f.nii.gz", "whole-number");
+}
+
 TEST(Cli, InfoOnRealCtGivesTheRightOrigin) {
   if (msk::test::sharedData().empty()) GTEST_SKIP() << "../shared/data absent";
   CliResult r = runCli({"info", "--json", msk::test::sharedData() + "/totalseg-ct/ct.nii.gz"});
