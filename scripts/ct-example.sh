@@ -4,12 +4,13 @@
 # the midline (the x of the sacrum's centroid, label 25), each learning its intensity profiles on the left structure
 # it came from; the bones take the refinement pass. Then each result is scored against the right side's labels. The
 # templates start where the mirror puts them (the test RealScenes.CtFemurHipAndGlutealMusclesOfOneSide also displaces
-# and scales them). Usage: bash scripts/ct-example.sh [DATA_DIR] (default ../shared/data); needs a build.
+# and scales them). Usage: bash scripts/ct-example.sh [DATA_DIR] (default ../shared/data); needs a build. Environment:
+# MSKSEG (the program; default build/apps/mskseg), MSK_OUT_DIR (default out/ct-example).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-exe="${MSK_BUILD_DIR:-$here/build}/apps/mskseg"
+exe="${MSKSEG:-${MSK_BUILD_DIR:-$here/build}/apps/mskseg}"
 data="${1:-$here/../shared/data}/totalseg-ct"
-out="$here/out/ct-example"
+out="${MSK_OUT_DIR:-$here/out/ct-example}"
 [ -x "$exe" ] || { echo "ct-example: build first (bash scripts/build.sh)" >&2; exit 1; }
 [ -f "$data/ct.nii.gz" ] || { echo "ct-example: $data/ct.nii.gz not found" >&2; exit 1; }
 rm -rf "$out"
