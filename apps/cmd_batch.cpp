@@ -284,6 +284,14 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   }
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
     throw IoError(casesDir, "no case: no subfolder holds " + imageName);
+  // A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
+  // writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes.
+  if (fs::is_directory(outAbs, ec))
+    for (const auto& e : fs::directory_iterator(outAbs, ec)) {
+      const std::string n = e.path().filename().string();
+      for (const Case& c : cases)
+        if (n.rfind("." + c.name + ".partial", 0) == 0) fs::remove_all(e.path(), ec);
+    }
   fs::create_directories(outAbs / "logs", ec);
   if (ec) throw IoError((outAbs / "logs").string(), "cannot create folder: " + ec.message());
 
