@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -285,12 +286,18 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
     throw IoError(casesDir, "no case: no subfolder holds " + imageName);
   // A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
-  // writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes.
+  // writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes (not one whose
+  // process still runs, e.g. another batch on the same folder).
   if (fs::is_directory(outAbs, ec))
     for (const auto& e : fs::directory_iterator(outAbs, ec)) {
       const std::string n = e.path().filename().string();
-      for (const Case& c : cases)
-        if (n.rfind("." + c.name + ".partial", 0) == 0) fs::remove_all(e.path(), ec);
+      for (const Case& c : cases) {
+        const std::string prefix = "." + c.name + ".partial";
+        if (n.rfind(prefix, 0) != 0) continue;
+        const long pid = std::atol(n.c_str() + prefix.size());  // still being written by a live process: leave it
+        if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) == 0) continue;
+        fs::remove_all(e.path(), ec);
+      }
     }
   fs::create_directories(outAbs / "logs", ec);
   if (ec) throw IoError((outAbs / "logs").string(), "cannot create folder: " + ec.message());
