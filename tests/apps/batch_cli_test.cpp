@@ -100,7 +100,7 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   // Repair p03 and rerun: p01 and p02 are not run again (their results stay as they were), p03 now succeeds; the
   // staging folder a killed run would have left for p03 is removed.
   const auto written = fs::last_write_time(out + "/p01/report.json");
-  fs::create_directories(out + "/.p03.partial12345/qc");
+  fs::create_directories(out + "/.p03.partial999999999/qc");
   fs::remove(cases + "/p03/image.nii.gz");
   fs::create_symlink(kSample + "image.nii.gz", cases + "/p03/image.nii.gz");
   r = runCli(args);
@@ -113,7 +113,7 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   EXPECT_GT(std::stod(rows[2][9]), 0.95) << "a case done earlier is still scored";
   EXPECT_EQ(rows[4][1], "ok");
   EXPECT_TRUE(fs::exists(out + "/p03/report.json"));
-  EXPECT_FALSE(fs::exists(out + "/.p03.partial12345"));
+  EXPECT_FALSE(fs::exists(out + "/.p03.partial999999999"));
 }
 
 // A mistake in the batch's own options or in those it forwards to every case is one line, exit code 2 (1 for a
