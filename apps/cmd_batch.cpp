@@ -3,6 +3,7 @@
 // whole or not at all; a rerun skips the cases already done, so an interrupted overnight batch resumes where it
 // stopped. The summary table is rewritten (atomically) as each case ends.
 #include <fcntl.h>
+#include <fnmatch.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -48,7 +49,8 @@ struct ObjectScore {
 /// One case: where it reads and writes, and how it ended.
 struct Case {
   std::string name, image, scene, out, log;
-  std::string status = "pending";  // ok | failed | done (by an earlier run) | skipped (no image) | pending
+  std::string reference, referenceProblem;  // with --reference: the case's reference labels, or why there are none
+  std::string status = "pending";           // ok | failed | done (by an earlier run) | skipped (no image) | pending
   std::string message;
   int exitCode = -1;
   double seconds = 0, peakRssMiB = 0;
@@ -87,6 +89,28 @@ std::string errorLine(const std::string& logPath) {
   return lastError.empty() ? last : lastError;
 }
 
+/// The file of case folder `dir` named `pattern` (a name, or a shell pattern such as "*_T1w.nii.gz" that must match
+/// exactly one file there). Empty with `problem` set if there is none or more than one.
+std::string caseFile(const fs::path& dir, const std::string& pattern, std::string& problem) {
+  problem.clear();
+  if (pattern.find_first_of("*?[") == std::string::npos) {
+    if (fs::exists(dir / pattern)) return fs::absolute(dir / pattern).string();
+    problem = "no " + pattern;
+    return "";
+  }
+  std::vector<std::string> hits;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (!e.is_directory() && ::fnmatch(pattern.c_str(), e.path().filename().c_str(), 0) == 0)
+      hits.push_back(e.path().filename().string());
+  std::sort(hits.begin(), hits.end());
+  if (hits.size() == 1) return fs::absolute(dir / hits[0]).string();
+  problem = hits.empty() ? "no file matches " + pattern
+                         : std::to_string(hits.size()) + " files match " + pattern + " (" + hits[0] + ", " + hits[1] +
+                               (hits.size() > 2 ? ", ..." : "") + ")";
+  return "";
+}
+
 /// Reads the reference-free checks of a finished case from its report.json (left NaN if it cannot be read).
 void readChecks(Case& c) {
   try {
@@ -106,15 +130,15 @@ void readChecks(Case& c) {
 }
 
 /// Scores each object of a finished case (the names and labels its report lists) against the reference label map.
-void scoreCase(Case& c, const std::string& referencePath) {
-  if (!fs::exists(referencePath)) {
-    c.message = "no reference " + fs::path(referencePath).filename().string();
+void scoreCase(Case& c) {
+  if (c.reference.empty()) {
+    c.message = c.referenceProblem;
     return;
   }
   try {
     const Json report = Json::readFile(c.out + "/report.json");
     const LabelMap result = readNifti<int32_t>(c.out + "/labels.nii.gz");
-    const LabelMap reference = readNifti<int32_t>(referencePath);
+    const LabelMap reference = readNifti<int32_t>(c.reference);
     for (const Json& o : report.at("objects").asArray()) {
       ObjectScore s;
       s.name = o.at("name").asString();
@@ -220,14 +244,15 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
            "voxels inside two objects), Dice, message),\n"
            "rewritten as each case ends, OUT/metrics.csv with --reference, and OUT/batch.json (the command,\n"
            "version, counts, times).\n"
-           "  --image NAME      the image file in each case folder (default image.nii.gz)\n"
-           "  --reference NAME  a label map in each case folder: each object's Dice, ASSD, HD95 against it,\n"
-           "                    for the object's label (OUT/metrics.csv)\n"
+           "  --image NAME      the image file in each case folder (default image.nii.gz), or a shell pattern\n"
+           "                    matching one file there, e.g. '*_T1w.nii.gz' (quoted)\n"
+           "  --reference NAME  a label map in each case folder (a name or a pattern, as --image): each object's\n"
+           "                    Dice, ASSD and HD95 against it for the object's label (OUT/metrics.csv)\n"
            "  --jobs N          cases run at once (default 1; each case's --threads come after --)\n"
            "  --redo            run the cases already done again\n"
            "  -- OPTIONS        passed to every `mskseg segment`, e.g. -- --quality fast --no-qc\n"
            "Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 for a usage error\n"
-           "(including one in the segment options, found on the first case: the batch then stops).\n";
+           "(the options after -- included: they are checked before any case runs).\n";
     return 0;
   }
   if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
@@ -267,13 +292,18 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   for (const fs::path& f : folders) {
     Case c;
     c.name = f.filename().string();
-    c.image = fs::absolute(f / imageName).string();
+    std::string problem;
+    c.image = caseFile(f, imageName, problem);
+    if (scored) c.reference = caseFile(f, referenceName, c.referenceProblem);
     c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : scene;
     c.out = (outAbs / c.name).string();
     c.log = (outAbs / "logs" / (c.name + ".log")).string();
-    if (!fs::exists(c.image)) {
+    if (c.image.empty() && problem.rfind("no ", 0) == 0) {
       c.status = "skipped";
-      c.message = "no " + imageName;
+      c.message = problem;
+    } else if (c.image.empty()) {
+      c.status = "failed";
+      c.message = problem;
     } else if (c.scene.empty()) {
       c.status = "failed";
       c.message = "no scene: give --scene or put a scene.json in the case folder";
@@ -312,7 +342,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
       c.status = "done";
       ++doneEarlier;
       readChecks(c);
-      if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
+      if (scored) scoreCase(c);
     } else {
       todo.push_back(i);
     }
@@ -356,7 +386,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     if (WIFEXITED(status) && c.exitCode == 0) {
       c.status = "ok";
       readChecks(c);
-      if (scored) scoreCase(c, fs::path(c.image).parent_path().string() + "/" + referenceName);
+      if (scored) scoreCase(c);
     } else {
       c.status = "failed";
       c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +

@@ -143,3 +143,30 @@ TEST(BatchCli, BadOptionsStopBeforeAnythingIsWritten) {
                                 "empty", "no case");
   EXPECT_FALSE(fs::exists(out));
 }
+
+// --image and --reference may be shell patterns matching one file per case: a folder with none is skipped, one with
+// two is a failed case naming both.
+TEST(BatchCli, ImagePatternsFindOneFilePerCase) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  fs::create_directories(cases + "/sub-01");
+  fs::create_symlink(kSample + "image.nii.gz", cases + "/sub-01/sub-01_T1w.nii.gz");
+  fs::create_symlink(kSample + "labels.nii.gz", cases + "/sub-01/sub-01_dseg.nii.gz");
+  fs::create_directories(cases + "/sub-02");
+  fs::create_symlink(kSample + "image.nii.gz", cases + "/sub-02/sub-02_run-1_T1w.nii.gz");
+  fs::create_symlink(kSample + "image.nii.gz", cases + "/sub-02/sub-02_run-2_T1w.nii.gz");
+  fs::create_directories(cases + "/sub-03");
+  msk::test::writeBytes(cases + "/sub-03/notes.txt", "no scan");
+  const auto r =
+      runCli({"batch", "--cases", cases, "--scene", femurScene(dir.file("scene.json"), "femur"), "--out", out,
+              "--image", "*_T1w.nii.gz", "--reference", "*_dseg.nii.gz", "--", "--quality", "fast", "--no-qc"});
+  EXPECT_EQ(r.exitCode, 1) << r.err;
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[1][1], "ok");
+  EXPECT_GT(std::stod(rows[1][9]), 0.95) << "scored against the file matching *_dseg.nii.gz";
+  EXPECT_EQ(rows[2][1], "failed");
+  EXPECT_NE(rows[2][11].find("2 files match"), std::string::npos) << rows[2][11];
+  EXPECT_EQ(rows[3][1], "skipped");
+  EXPECT_NE(rows[3][11].find("no file matches"), std::string::npos) << rows[3][11];
+}
