@@ -11,6 +11,23 @@
 
 namespace msk::cli {
 
+void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath) {
+  if (std::find(labels.data.begin(), labels.data.end(), static_cast<int32_t>(label)) != labels.data.end()) return;
+  std::set<int32_t> present(labels.data.begin(), labels.data.end());
+  present.erase(0);
+  std::string list;
+  int shown = 0;
+  for (int32_t v : present) {
+    if (++shown > 20) {
+      list += ", ...";
+      break;
+    }
+    list += (list.empty() ? "" : ", ") + std::to_string(v);
+  }
+  throw IoError(labelsPath, "label " + std::to_string(label) +
+                                " not found (labels present: " + (list.empty() ? "none" : list) + ")");
+}
+
 int cmdTemplate(const std::vector<std::string>& argv) {
   Args args(argv, {"labels", "label", "vertices", "smooth", "mirror-x", "mesh-space", "out"}, {"help"});
   if (args.has("help")) {
@@ -47,21 +64,7 @@ int cmdTemplate(const std::vector<std::string>& argv) {
     throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);
-  if (std::find(labels.data.begin(), labels.data.end(), static_cast<int32_t>(label)) == labels.data.end()) {
-    std::set<int32_t> present(labels.data.begin(), labels.data.end());
-    present.erase(0);
-    std::string list;
-    int shown = 0;
-    for (int32_t v : present) {
-      if (++shown > 20) {
-        list += ", ...";
-        break;
-      }
-      list += (list.empty() ? "" : ", ") + std::to_string(v);
-    }
-    throw IoError(labelsPath, "label " + std::to_string(label) +
-                                  " not found (labels present: " + (list.empty() ? "none" : list) + ")");
-  }
+  requireLabel(labels, label, labelsPath);
   TemplateReport report;
   TriangleMesh mesh = templateFromLabels(labels, static_cast<int>(label), opts, &report);
   if (mirror) mesh = mirrorMesh(mesh, Eigen::Vector3d(mirrorX, 0, 0), Eigen::Vector3d::UnitX());

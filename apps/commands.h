@@ -8,6 +8,7 @@
 #include "args.h"
 #include "msk/core/json.h"
 #include "msk/core/log.h"
+#include "msk/imaging/volume.h"
 #include "msk/segmentation/segmenter.h"
 
 namespace msk::cli {
@@ -23,6 +24,11 @@ int cmdRasterize(const std::vector<std::string>& args);
 int cmdConvert(const std::vector<std::string>& args);
 /// mskseg template: smooth closed template surface from one label of a label map.
 int cmdTemplate(const std::vector<std::string>& args);
+
+/// mskseg scene: a scene (scene.json and templates) from the labels of a label map, mirrored if asked.
+int cmdScene(const std::vector<std::string>& args);
+/// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
+void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
 
 /// mskseg segment: evolve a scene's templates into an image.
 /// The options of `mskseg segment` that take a value, and those that do not (the batch checks its forwarded ones).

@@ -28,6 +28,7 @@ const std::map<std::string, Command>& commands() {
       {"eval", {msk::cli::cmdEval, "Dice, Jaccard, ASSD, HD95, Hausdorff between label maps or meshes"}},
       {"rasterize", {msk::cli::cmdRasterize, "closed mesh -> label map on an image's grid"}},
       {"convert", {msk::cli::cmdConvert, "convert meshes between .vtk .vtp .stl .obj .ply and LPS/RAS"}},
+      {"scene", {msk::cli::cmdScene, "scene.json and templates from a label map's labels (e.g. the other side, mirrored)"}},
       {"template", {msk::cli::cmdTemplate, "smooth template surface from a label map"}},
       {"batch", {msk::cli::cmdBatch, "segment every case of a cohort folder with one scene (resumable, summary table)"}},
       {"bench", {msk::cli::cmdBench, "benchmarks that print figures (bench scene: 24-structure phantom timing)"}},
