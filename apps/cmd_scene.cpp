@@ -106,14 +106,7 @@ int cmdScene(const std::vector<std::string>& argv) {
   const std::vector<ObjectSpec> objects = parseObjects(args.str("objects"));
   if (args.has("mirror-x") && args.has("midline-label"))
     throw UsageError("give --mirror-x or --midline-label, not both");
-  TemplateOptions topts;
-  const long vertices = args.integer("vertices", topts.vertices);
-  if (vertices < 4 || vertices > 10000000L)
-    throw ParameterError("--vertices", std::to_string(vertices), "must be in 4..10000000");
-  topts.vertices = static_cast<int>(vertices);
-  topts.smoothingSigmaMm = args.num("smooth", 0.0);
-  if (topts.smoothingSigmaMm < 0)
-    throw ParameterError("--smooth", args.str("smooth"), "must be >= 0 (0: half the largest voxel spacing)");
+  const TemplateOptions topts = templateOptionsFrom(args);
   const std::string collisions = args.str("collisions", "auto");
   if (collisions != "auto" && collisions != "all" && collisions != "none")
     throw ParameterError("--collisions", collisions, "must be auto, all or none");

@@ -28,6 +28,18 @@ void requireLabel(const LabelMap& labels, long label, const std::string& labelsP
                                 " not found (labels present: " + (list.empty() ? "none" : list) + ")");
 }
 
+TemplateOptions templateOptionsFrom(const Args& args) {
+  TemplateOptions opts;
+  const long vertices = args.integer("vertices", opts.vertices);
+  if (vertices < 4 || vertices > 10000000L)
+    throw ParameterError("--vertices", std::to_string(vertices), "must be in 4..10000000");
+  opts.vertices = static_cast<int>(vertices);
+  opts.smoothingSigmaMm = args.num("smooth", 0.0);
+  if (opts.smoothingSigmaMm < 0)
+    throw ParameterError("--smooth", args.str("smooth"), "must be >= 0 (0: half the largest voxel spacing)");
+  return opts;
+}
+
 int cmdTemplate(const std::vector<std::string>& argv) {
   Args args(argv, {"labels", "label", "vertices", "smooth", "mirror-x", "mesh-space", "out"}, {"help"});
   if (args.has("help")) {
@@ -49,14 +61,7 @@ int cmdTemplate(const std::vector<std::string>& argv) {
   const long label = args.integer("label", 0);
   if (label < 1 || label > 2147483647L)
     throw ParameterError("--label", std::to_string(label), "must be in 1..2147483647");
-  TemplateOptions opts;
-  const long vertices = args.integer("vertices", opts.vertices);
-  if (vertices < 4 || vertices > 10000000L)
-    throw ParameterError("--vertices", std::to_string(vertices), "must be in 4..10000000");
-  opts.vertices = static_cast<int>(vertices);
-  opts.smoothingSigmaMm = args.num("smooth", 0.0);
-  if (opts.smoothingSigmaMm < 0)
-    throw ParameterError("--smooth", args.str("smooth"), "must be >= 0 (0: half the largest voxel spacing)");
+  const TemplateOptions opts = templateOptionsFrom(args);
   const bool mirror = args.has("mirror-x");
   const double mirrorX = args.num("mirror-x", 0.0);
   const MeshSpace space = parseMeshSpace(args.str("mesh-space", "lps"));

@@ -9,6 +9,7 @@
 #include "msk/core/json.h"
 #include "msk/core/log.h"
 #include "msk/imaging/volume.h"
+#include "msk/segmentation/template_builder.h"
 #include "msk/segmentation/segmenter.h"
 
 namespace msk::cli {
@@ -27,6 +28,8 @@ int cmdTemplate(const std::vector<std::string>& args);
 
 /// mskseg scene: a scene (scene.json and templates) from the labels of a label map, mirrored if asked.
 int cmdScene(const std::vector<std::string>& args);
+/// The template options (--vertices, --smooth) of a `template` or `scene` command line; ParameterError if bad.
+TemplateOptions templateOptionsFrom(const Args& args);
 /// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
 void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
 
