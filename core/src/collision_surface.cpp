@@ -85,33 +85,61 @@ void CollisionSurface::update(const Points& p) {
   for (size_t i = 0; i < cells; ++i) start_[i + 1] += start_[i];
   items_.resize(static_cast<size_t>(start_[cells]));
   std::vector<int> fill(start_.begin(), start_.end() - 1);
-  for (int t = 0; t < nt; ++t) forCells(t, [&](size_t ci) { items_[static_cast<size_t>(fill[ci]++)] = t; });
+  for (int t = 0; t < nt; ++t) {
+    CellItem item;
+    for (int a = 0; a < 3; ++a) {
+      item.lo[a] = lo_(t, a);
+      item.hi[a] = hi_(t, a);
+    }
+    item.triangle = t;
+    forCells(t, [&](size_t ci) { items_[static_cast<size_t>(fill[ci]++)] = item; });
+  }
 }
 
 SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance) const {
   SurfacePoint best;
   if (start_.empty() || (q.array() < boxLo_.array()).any() || (q.array() > boxHi_.array()).any()) return best;
-  best.distance = std::min(maxDistance, reach_);
+  const double radius = std::min(maxDistance, reach_);
+  best.distance = radius;
+  // Only the cells the ball of `radius` around q touches (at most 2 per axis, as cells are at least the reach wide),
+  // within the 3×3×3 block around q's cell. The result is that of scanning the whole block in z, y, x order, each
+  // cell's triangles by index, keeping the first of equally close ones (a vertex or edge shared by several triangles
+  // is a tie): a tie goes to the triangle the block scan meets first, its first cell in the block, then its index.
   const Eigen::Vector3i c = cellOf(q);
-  for (int z = std::max(0, c[2] - 1); z <= std::min(dims_[2] - 1, c[2] + 1); ++z)
-    for (int y = std::max(0, c[1] - 1); y <= std::min(dims_[1] - 1, c[1] + 1); ++y)
-      for (int x = std::max(0, c[0] - 1); x <= std::min(dims_[0] - 1, c[0] + 1); ++x) {
+  const double pad = radius * (1 + 1e-9) + 1e-9;  // a superset of the touched cells despite rounding
+  const Eigen::Vector3i from = cellOf((q.array() - pad).matrix()).cwiseMax(c - Eigen::Vector3i::Ones());
+  const Eigen::Vector3i to = cellOf((q.array() + pad).matrix()).cwiseMin(c + Eigen::Vector3i::Ones());
+  size_t bestKey = 0;
+  for (int z = from[2]; z <= to[2]; ++z)
+    for (int y = from[1]; y <= to[1]; ++y)
+      for (int x = from[0]; x <= to[0]; ++x) {
         const size_t ci = cellIndex(x, y, z);
         for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
-          const int t = items_[static_cast<size_t>(k)];
+          const CellItem& item = items_[static_cast<size_t>(k)];
           // Cheap rejection: the triangle's box is already farther than the best found.
-          if ((lo_.row(t).transpose() - q).cwiseMax(q - hi_.row(t).transpose()).cwiseMax(0.0).norm() >= best.distance)
-            continue;
+          double boxSq = 0;
+          for (int a = 0; a < 3; ++a) {
+            const double out = std::max(std::max(item.lo[a] - q[a], q[a] - item.hi[a]), 0.0);
+            boxSq += out * out;
+          }
+          if (boxSq > best.distance * best.distance) continue;
+          const int t = item.triangle;
           Eigen::Vector3d bc;
           const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri_(t, 0)).transpose(), p.row(tri_(t, 1)).transpose(),
                                                             p.row(tri_(t, 2)).transpose(), &bc);
           const double d = (cp - q).norm();
-          if (d < best.distance) {
-            best.distance = d;
-            best.point = cp;
-            best.triangle = t;
-            for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
-          }
+          if (!(d <= best.distance)) continue;
+          // Where the block scan meets t first: its first cell in the block (the box product's smallest corner), then t.
+          const Eigen::Vector3i first =
+              cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2])).cwiseMax(c - Eigen::Vector3i::Ones());
+          const size_t key = cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(tri_.rows()) +
+                             static_cast<size_t>(t);
+          if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
+          best.distance = d;
+          best.point = cp;
+          best.triangle = t;
+          bestKey = key;
+          for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
         }
       }
   return best;

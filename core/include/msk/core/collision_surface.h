@@ -60,7 +60,13 @@ class CollisionSurface {
   Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();
   double cell_ = 1;
   Eigen::Vector3i dims_ = Eigen::Vector3i::Zero();
-  std::vector<int> start_, items_;        ///< cell → triangles (CSR)
+  /// A triangle listed in a grid cell, with a copy of its bounding box, so that a query streams through a cell's list.
+  struct CellItem {
+    double lo[3], hi[3];
+    int triangle;
+  };
+  std::vector<int> start_;                ///< cell → its range of items_ (CSR)
+  std::vector<CellItem> items_;           ///< each cell's triangles, by index
   mutable std::unique_ptr<WindingNumber> winding_;  ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;
 };
