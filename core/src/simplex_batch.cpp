@@ -220,6 +220,7 @@ inline void fromQ(const Q2* in, D2& x, D2& y, D2& z) {
 
 namespace lanes2 {
 using Pack = D2;
+using Mask = D2;
 using Q = Q2;
 #include "simplex_batch_kernel.inc"
 }  // namespace lanes2
@@ -258,6 +259,8 @@ inline D4 operator~(D4 m) { return {_mm256_xor_pd(m.v, _mm256_castsi256_pd(_mm25
 inline D4 select(D4 m, D4 a, D4 b) { return {_mm256_blendv_pd(b.v, a.v, m.v)}; }
 inline D4 flipSign(D4 a, D4 s) { return {_mm256_xor_pd(a.v, _mm256_and_pd(s.v, _mm256_set1_pd(-0.0)))}; }
 inline int bits(D4 m) { return _mm256_movemask_pd(m.v); }
+/// What the comparisons give: all-ones / all-zeros lanes.
+using Mask = D4;
 /// One particle's packed x, y, z, w (+ and · are the compilers' own vector arithmetic on __m256d).
 using Q = __m256d;
 inline Q loadQ(const double* p) { return _mm256_load_pd(p); }
@@ -367,8 +370,8 @@ constexpr int kHalfLanes = 4;
 // ---------------------------------------------------------------------------------------- eight lanes (AVX-512)
 
 // Eight rows in one 512-bit pack, 32 vector registers (AVX-512 F, DQ, VL), chosen at run time like AVX2. Masks are
-// kept as all-ones / all-zeros lanes, as on the narrower paths, and the same operations run lane by lane: no fused
-// multiply-add (contraction off), so the results are bitwise those of the SSE2 and AVX2 paths.
+// kept in mask registers (one bit per lane; they only choose between values), and the same arithmetic runs lane by
+// lane: no fused multiply-add (contraction off), so the results are bitwise those of the SSE2 and AVX2 paths.
 #if defined(__clang__)
 #pragma clang attribute push(__attribute__((target("avx2,avx512f,avx512dq,avx512vl"))), apply_to = function)
 #pragma clang fp contract(off)
@@ -387,9 +390,14 @@ struct D8 {
 };
 inline __m512i bitsOf(D8 a) { return _mm512_castpd_si512(a.v); }
 inline D8 fromBits(__m512i a) { return {_mm512_castsi512_pd(a)}; }
-/// All-ones lanes where `k` is set.
-inline D8 maskOf(__mmask8 k) { return fromBits(_mm512_maskz_set1_epi64(k, -1)); }
-inline __mmask8 maskBits(D8 m) { return _mm512_test_epi64_mask(bitsOf(m), bitsOf(m)); }
+/// What the comparisons give: one bit per lane in a mask register (no move into a vector and back per test).
+struct M8 {
+  __mmask8 k;
+};
+using Mask = M8;
+inline M8 operator&(M8 a, M8 b) { return {static_cast<__mmask8>(a.k & b.k)}; }
+inline M8 operator|(M8 a, M8 b) { return {static_cast<__mmask8>(a.k | b.k)}; }
+inline M8 operator~(M8 m) { return {static_cast<__mmask8>(~m.k)}; }
 inline D8 splat(double a) { return {_mm512_set1_pd(a)}; }
 inline D8 loadu(const double* p) { return {_mm512_loadu_pd(p)}; }
 inline void storeu(D8 a, double* out) { _mm512_storeu_pd(out, a.v); }
@@ -400,19 +408,16 @@ inline D8 operator/(D8 a, D8 b) { return {_mm512_div_pd(a.v, b.v)}; }
 inline D8 vsqrt(D8 a) { return {_mm512_sqrt_pd(a.v)}; }
 inline D8 vmax(D8 a, D8 b) { return {_mm512_max_pd(a.v, b.v)}; }
 inline D8 vabs(D8 a) { return fromBits(_mm512_andnot_si512(_mm512_set1_epi64(INT64_MIN), bitsOf(a))); }
-inline D8 gt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GT_OQ)); }
-inline D8 lt(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_LT_OQ)); }
-inline D8 ge(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_GE_OQ)); }
-inline D8 eq(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_EQ_OQ)); }
-inline D8 notLe(D8 a, D8 b) { return maskOf(_mm512_cmp_pd_mask(a.v, b.v, _CMP_NLE_UQ)); }
-inline D8 operator&(D8 a, D8 b) { return fromBits(_mm512_and_si512(bitsOf(a), bitsOf(b))); }
-inline D8 operator|(D8 a, D8 b) { return fromBits(_mm512_or_si512(bitsOf(a), bitsOf(b))); }
-inline D8 operator~(D8 m) { return fromBits(_mm512_xor_si512(bitsOf(m), _mm512_set1_epi64(-1))); }
-inline D8 select(D8 m, D8 a, D8 b) { return {_mm512_mask_blend_pd(maskBits(m), b.v, a.v)}; }
+inline M8 gt(D8 a, D8 b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_GT_OQ)}; }
+inline M8 lt(D8 a, D8 b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_LT_OQ)}; }
+inline M8 ge(D8 a, D8 b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_GE_OQ)}; }
+inline M8 eq(D8 a, D8 b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_EQ_OQ)}; }
+inline M8 notLe(D8 a, D8 b) { return {_mm512_cmp_pd_mask(a.v, b.v, _CMP_NLE_UQ)}; }
+inline D8 select(M8 m, D8 a, D8 b) { return {_mm512_mask_blend_pd(m.k, b.v, a.v)}; }
 inline D8 flipSign(D8 a, D8 s) {
   return fromBits(_mm512_xor_si512(bitsOf(a), _mm512_and_si512(bitsOf(s), _mm512_set1_epi64(INT64_MIN))));
 }
-inline int bits(D8 m) { return maskBits(m); }
+inline int bits(M8 m) { return m.k; }
 /// The 4-lane halves of a pack and back.
 inline lanes4::D4 lo(D8 a) { return {_mm512_castpd512_pd256(a.v)}; }
 inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
@@ -424,23 +429,43 @@ using lanes4::keepW;
 using lanes4::loadQ;
 using lanes4::splatQ;
 using lanes4::storeQ;
+/// The x, y, z, w packs of the particles idx[0..7] of `pos`: one 32-byte load per particle, two particles per
+/// register (k and k + 2 of each group of four), then unpacks within 128-bit lanes and 128-bit lane shuffles (12
+/// shuffles and 8 loads for 8 particles, half the loads of two 4-particle transposes).
 inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D8& w) {
-  lanes4::D4 xl, yl, zl, wl, xh, yh, zh, wh;
-  lanes4::loadPoints(pos, idx, xl, yl, zl, wl);
-  lanes4::loadPoints(pos, idx + 4, xh, yh, zh, wh);
-  x = join(xl, xh);
-  y = join(yl, yh);
-  z = join(zl, zh);
-  w = join(wl, wh);
+  auto pair = [pos](int a, int b) {  // particle a in the low half, b in the high half
+    return _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(a))),
+                              _mm256_load_pd(pos + 4 * static_cast<std::ptrdiff_t>(b)), 1);
+  };
+  const __m512d a = pair(idx[0], idx[2]), b = pair(idx[1], idx[3]);  // x0 y0 z0 w0 x2 y2 z2 w2, the same of 1, 3
+  const __m512d c = pair(idx[4], idx[6]), d = pair(idx[5], idx[7]);
+  const __m512d t0 = _mm512_unpacklo_pd(a, b), t1 = _mm512_unpackhi_pd(a, b);  // x0 x1 z0 z1 x2 x3 z2 z3, y.. w..
+  const __m512d t2 = _mm512_unpacklo_pd(c, d), t3 = _mm512_unpackhi_pd(c, d);  // the same of 4 .. 7
+  x.v = _mm512_shuffle_f64x2(t0, t2, 0x88);  // 128-bit lanes 0, 2 of t0, then of t2
+  z.v = _mm512_shuffle_f64x2(t0, t2, 0xDD);  // lanes 1, 3
+  y.v = _mm512_shuffle_f64x2(t1, t3, 0x88);
+  w.v = _mm512_shuffle_f64x2(t1, t3, 0xDD);
 }
-inline void toQ(D8 x, D8 y, D8 z, Q* out) {
-  lanes4::toQ(lo(x), lo(y), lo(z), out);
-  lanes4::toQ(hi(x), hi(y), hi(z), out + 4);
-}
+/// out[k] = (a, b, c, d) of lane k: unpacks within 128-bit lanes, then two-register permutes that put lanes k and
+/// k + 2 side by side (12 shuffles for 8 particles).
 inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
-  lanes4::toQ4(lo(a), lo(b), lo(c), lo(d), out);
-  lanes4::toQ4(hi(a), hi(b), hi(c), hi(d), out + 4);
+  const __m512d t0 = _mm512_unpacklo_pd(a.v, b.v), t1 = _mm512_unpackhi_pd(a.v, b.v);  // a0 b0 a2 b2 .., a1 b1 ..
+  const __m512d t2 = _mm512_unpacklo_pd(c.v, d.v), t3 = _mm512_unpackhi_pd(c.v, d.v);  // c0 d0 c2 d2 .., c1 d1 ..
+  const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);  // 128-bit lanes 0 of t0, t2, then lanes 1
+  const __m512i second = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);  // lanes 2, then 3
+  const __m512d q02 = _mm512_permutex2var_pd(t0, first, t2), q46 = _mm512_permutex2var_pd(t0, second, t2);
+  const __m512d q13 = _mm512_permutex2var_pd(t1, first, t3), q57 = _mm512_permutex2var_pd(t1, second, t3);
+  out[0] = _mm512_castpd512_pd256(q02);
+  out[1] = _mm512_castpd512_pd256(q13);
+  out[2] = _mm512_extractf64x4_pd(q02, 1);
+  out[3] = _mm512_extractf64x4_pd(q13, 1);
+  out[4] = _mm512_castpd512_pd256(q46);
+  out[5] = _mm512_castpd512_pd256(q57);
+  out[6] = _mm512_extractf64x4_pd(q46, 1);
+  out[7] = _mm512_extractf64x4_pd(q57, 1);
 }
+/// out[k] = (x, y, z, 0) of lane k.
+inline void toQ(D8 x, D8 y, D8 z, Q* out) { toQ4(x, y, z, D8{_mm512_setzero_pd()}, out); }
 inline void fromQ(const Q* in, D8& x, D8& y, D8& z) {
   lanes4::D4 xl, yl, zl, xh, yh, zh;
   lanes4::fromQ(in, xl, yl, zl);
