@@ -313,6 +313,8 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     }
     cases.push_back(c);
   }
+  if (scene.empty() && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
+    throw UsageError("missing required option --scene (no case folder has a scene.json of its own)");
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
     throw IoError(casesDir, "no case: no subfolder holds " + imageName);
   // A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see

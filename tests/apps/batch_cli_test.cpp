@@ -138,6 +138,7 @@ TEST(BatchCli, BadOptionsStopBeforeAnythingIsWritten) {
                                 "none", "no such folder");
   msk::test::expectOneLineError(runCli({"batch", "--cases", cases, "--scene", dir.file("none.json"), "--out", out}), 1,
                                 "none.json", "no such file");
+  msk::test::expectOneLineError(runCli({"batch", "--cases", cases, "--out", out}), 2, "", "--scene");
   fs::create_directories(dir.file("empty"));
   msk::test::expectOneLineError(runCli({"batch", "--cases", dir.file("empty"), "--scene", scene, "--out", out}), 1,
                                 "empty", "no case");
