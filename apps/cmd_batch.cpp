@@ -55,6 +55,7 @@ struct Case {
   int exitCode = -1;
   double seconds = 0, peakRssMiB = 0;
   std::vector<ObjectScore> scores;
+  double meanDice = std::nan(""), minDice = std::nan("");  ///< over `scores` (NaN: none)
   // Signs of trouble that need no reference, from the case's report.json (NaN: not read).
   double worstResidualMm = std::nan("");       ///< largest mean image residual of an object
   double worstVolumeChangePct = std::nan("");  ///< largest |volume / template volume − 1| of an object, %
@@ -111,10 +112,12 @@ std::string caseFile(const fs::path& dir, const std::string& pattern, std::strin
   return "";
 }
 
-/// Reads the reference-free checks of a finished case from its report.json (left NaN if it cannot be read).
-void readChecks(Case& c) {
+/// Reads a finished case's results once: the reference-free checks from its report.json (left NaN if it cannot be
+/// read) and, with `scored`, each object's scores (the names and labels the report lists) against the reference.
+void readResults(Case& c, bool scored) {
+  Json report;
   try {
-    const Json report = Json::readFile(c.out + "/report.json");
+    report = Json::readFile(c.out + "/report.json");
     double residual = 0, change = 0;
     for (const Json& o : report.at("objects").asArray()) {
       residual = std::max(residual, o.at("mean_image_residual_mm").asNumber());
@@ -127,16 +130,12 @@ void readChecks(Case& c) {
   } catch (const std::exception& e) {
     c.message = std::string("report not read: ") + e.what();
   }
-}
-
-/// Scores each object of a finished case (the names and labels its report lists) against the reference label map.
-void scoreCase(Case& c) {
+  if (!scored) return;
   if (c.reference.empty()) {
     c.message = c.referenceProblem;
     return;
   }
   try {
-    const Json report = Json::readFile(c.out + "/report.json");
     const LabelMap result = readNifti<int32_t>(c.out + "/labels.nii.gz");
     const LabelMap reference = readNifti<int32_t>(c.reference);
     for (const Json& o : report.at("objects").asArray()) {
@@ -148,6 +147,15 @@ void scoreCase(Case& c) {
       s.assdMm = m.assd;
       s.hd95Mm = m.hd95;
       c.scores.push_back(s);
+    }
+    if (!c.scores.empty()) {
+      double sum = 0, low = 1;
+      for (const ObjectScore& s : c.scores) {
+        sum += s.dice;
+        low = std::min(low, s.dice);
+      }
+      c.meanDice = sum / static_cast<double>(c.scores.size());
+      c.minDice = low;
     }
   } catch (const std::exception& e) {
     c.scores.clear();
@@ -161,17 +169,11 @@ void writeSummary(const std::string& out, const std::vector<Case>& cases, bool s
     f << "case,status,exit_code,seconds,peak_rss_mib,max_residual_mm,max_volume_change_pct,overlap_voxels,"
          "objects_scored,mean_dice,min_dice,message\n";
     for (const Case& c : cases) {
-      double sum = 0, low = 1;
-      for (const ObjectScore& s : c.scores) {
-        sum += s.dice;
-        low = std::min(low, s.dice);
-      }
-      const bool has = !c.scores.empty();
       f << csvField(c.name) << ',' << c.status << ',' << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ','
         << (c.seconds > 0 ? fixed(c.seconds, 2) : "") << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ','
         << orEmpty(c.worstResidualMm, 3) << ',' << orEmpty(c.worstVolumeChangePct, 2) << ','
-        << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ',' << (has ? fixed(sum / c.scores.size(), 4) : "")
-        << ',' << (has ? fixed(low, 4) : "") << ',' << csvField(c.message) << '\n';
+        << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ',' << orEmpty(c.meanDice, 4) << ','
+        << orEmpty(c.minDice, 4) << ',' << csvField(c.message) << '\n';
     }
     if (!f.flush()) throw IoError(out + "/summary.csv", "cannot write");
   });
@@ -343,8 +345,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     if (!redo && fs::exists(c.out + "/report.json")) {
       c.status = "done";
       ++doneEarlier;
-      readChecks(c);
-      if (scored) scoreCase(c);
+      readResults(c, scored);
     } else {
       todo.push_back(i);
     }
@@ -387,8 +388,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     if (WIFEXITED(status) && c.exitCode == 0) {
       c.status = "ok";
-      readChecks(c);
-      if (scored) scoreCase(c);
+      readResults(c, scored);
     } else {
       c.status = "failed";
       c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +
@@ -399,14 +399,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     }
     std::string line = "[" + std::to_string(finished) + "/" + std::to_string(todo.size()) + "] " + c.name + " " +
                        c.status + " in " + fixed(c.seconds, 1) + " s, " + fixed(c.peakRssMiB, 0) + " MiB";
-    if (!c.scores.empty()) {
-      double sum = 0, low = 1;
-      for (const ObjectScore& s : c.scores) {
-        sum += s.dice;
-        low = std::min(low, s.dice);
-      }
-      line += ", Dice mean " + fixed(sum / c.scores.size(), 3) + " min " + fixed(low, 3);
-    }
+    if (!c.scores.empty()) line += ", Dice mean " + fixed(c.meanDice, 3) + " min " + fixed(c.minDice, 3);
     if (!c.message.empty()) line += ": " + c.message;
     if (c.status == "failed") line += " (log " + c.log + ")";
     say(line);
