@@ -33,6 +33,9 @@ struct ObjectSpec {
   int templateFrom;
   msk::ObjectKind kind;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  ///< rigid motion applied to the mirrored template (world mm)
+  /// false: the template is built from `templateFrom` where it lies, not mirrored (its profiles are still learned on
+  /// the mirror image of where it came from, the contralateral structure)
+  bool mirror = true;
 };
 
 /// How far every template is moved (mm) and its per-object direction and scale (fixed, so the test is deterministic).
@@ -82,7 +85,8 @@ RealScene makeScene(const msk::ImageF& image, const msk::LabelMap& labels, const
     o.kind = specs[i].kind;
     const Eigen::Vector3d offset = displacementMm * kDirections[i % 4];
     const double scale = displacementMm > 0 ? kScales[i % 4] : 1.0;
-    msk::TriangleMesh mirrored = msk::test::mirroredTemplate(labels, specs[i].templateFrom, midX, topts);
+    msk::TriangleMesh mirrored = specs[i].mirror ? msk::test::mirroredTemplate(labels, specs[i].templateFrom, midX, topts)
+                                                 : msk::templateFromLabels(labels, specs[i].templateFrom, topts);
     const Eigen::Matrix4d& pose = specs[i].pose;
     mirrored.vertices = ((mirrored.vertices * pose.topLeftCorner<3, 3>().transpose()).rowwise() +
                          pose.topRightCorner<3, 1>().transpose())
@@ -336,16 +340,20 @@ RealScene mrScene(const std::string& data, int vertices = 3000) {
 /// totalseg-ct, right side: femur 76, hip bone 78, gluteus maximus 81 and medius 83, each from the left label,
 /// mirrored across the sagittal plane through the sacrum's centroid (25); every pair may touch. `mediusPose`: a rigid
 /// motion of the mirrored gluteus medius template before its displacement.
+/// `ownLabels`: every template built from the right side's own label instead (the shape the result should have),
+/// displaced and scaled the same way, its profiles still learned on the left structure.
 RealScene ctScene(const std::string& data, double displacementMm = kDisplacementMm,
-                  const Eigen::Matrix4d& mediusPose = Eigen::Matrix4d::Identity()) {
+                  const Eigen::Matrix4d& mediusPose = Eigen::Matrix4d::Identity(), bool ownLabels = false) {
   const msk::ImageF ct = msk::readNifti<float>(data + "/totalseg-ct/ct.nii.gz");
   const msk::LabelMap labels = msk::readNifti<int32_t>(data + "/totalseg-ct/labels.nii.gz");
   const double midX = msk::test::labelCentroid(labels, 25).x();
+  const Eigen::Matrix4d id = Eigen::Matrix4d::Identity();
+  const bool mirror = !ownLabels;
   return makeScene(ct, labels,
-                   {{"femur_right", 76, 75, msk::ObjectKind::Bone},
-                    {"hip_right", 78, 77, msk::ObjectKind::Bone},
-                    {"gluteus_maximus_right", 81, 80, msk::ObjectKind::Muscle},
-                    {"gluteus_medius_right", 83, 82, msk::ObjectKind::Muscle, mediusPose}},
+                   {{"femur_right", 76, mirror ? 75 : 76, msk::ObjectKind::Bone, id, mirror},
+                    {"hip_right", 78, mirror ? 77 : 78, msk::ObjectKind::Bone, id, mirror},
+                    {"gluteus_maximus_right", 81, mirror ? 80 : 81, msk::ObjectKind::Muscle, id, mirror},
+                    {"gluteus_medius_right", 83, mirror ? 82 : 83, msk::ObjectKind::Muscle, mediusPose, mirror}},
                    midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, displacementMm);
 }
 
@@ -446,5 +454,41 @@ TEST(RealScenes, CtGlutealSidesBestRigidFit) {
       EXPECT_GT(sc.objects[3].after.dice, sc.objects[3].before.dice);
       EXPECT_EQ(sc.overlapVoxels, 0u);
     }
+  }
+}
+
+// What the CT image itself says about the gluteus medius' labelled boundary (README, issue 4): the same scene with every
+// template built from the right side's OWN label (the shape the result should have), displaced by 3 mm and scaled by
+// ±3 % as above. If the image carried that boundary, the muscle would end near its label from there. It does not: the
+// run leaves it further from its label than its template started, with the profiles learned on the left side (as in
+// the scene above) and with the gradient force and the edge level. So the 0.88 the issue asks of the mirrored left
+// template (best rigid fit 0.847, CtGlutealSidesBestRigidFit) would have to come from the image, which on this 3 mm CT
+// moves even the right shape away. Measured: gluteus medius template alone 0.927 → 0.851 (profiles) and 0.908
+// (gradient); gluteus maximus 0.880 → 0.900 and 0.923; femur 0.899 → 0.952 / 0.977, hip bone 0.858 → 0.944 / 0.950.
+TEST(RealScenes, CtGluteusMediusFromItsOwnLabelLosesToTheImage) {
+  const std::string data = msk::test::sharedData();
+  if (data.empty()) GTEST_SKIP() << "../shared/data absent";
+  for (bool gradient : {false, true}) {
+    RealScene rs = ctScene(data, kDisplacementMm, Eigen::Matrix4d::Identity(), true);
+    if (gradient)
+      for (msk::SceneObject& o : rs.scene.objects) {
+        o.force = o.model.imageForce = msk::TargetMode::Gradient;
+        o.profileSource.reset();
+      }
+    rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // as runCtScene()
+    msk::SegmentOptions opts;
+    opts.priorEnd = 0.2;
+    opts.rangeFine = 1.0;
+    opts.sigmaFine = 1.0;
+    opts.edgeLevel = gradient;
+    const SceneScore sc = runScene(rs, opts);
+    printScore(gradient ? "totalseg-ct, templates from the right side's own labels, gradient force with the edge level"
+                        : "totalseg-ct, templates from the right side's own labels, profiles learned on the left side",
+               rs, sc);
+    const ObjectScore& medius = sc.objects[3];
+    EXPECT_GE(medius.before.dice, 0.90) << "the right shape, displaced and scaled, starts close";
+    EXPECT_LT(medius.after.dice, medius.before.dice) << "the image now moves the right shape toward its label";
+    EXPECT_EQ(sc.overlapVoxels, 0u);
+    for (size_t i = 0; i < 2; ++i) EXPECT_GE(sc.objects[i].after.dice, 0.93) << sc.objects[i].name;  // the bones
   }
 }
