@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -609,6 +610,33 @@ int benchTradeoff(const std::vector<std::string>& argv) {
                   "%s %.3f mm Dice %.4f)\n",
                   accurate->assd <= best->assd ? "holds" : "NOT MET", accurate->assd, accurate->dice,
                   best->config.name.c_str(), best->assd, best->dice);
+  }
+  // Accuracy from fast to accurate (issue 5): on the mean over the phantoms, and for each step per phantom (paired:
+  // the mean gain in ASSD, its t statistic, and on how many phantoms the slower preset is the more accurate).
+  const Mean* balanced = find("preset balanced");
+  if (fast && balanced && accurate) {
+    const bool rises = fast->assd > balanced->assd && balanced->assd > accurate->assd;
+    std::printf("check accuracy rises fast -> balanced -> accurate (mean ASSD): %s (%.3f -> %.3f -> %.3f mm; Dice "
+                "%.4f -> %.4f -> %.4f)\n",
+                rises ? "holds" : "NOT MET", fast->assd, balanced->assd, accurate->assd, fast->dice, balanced->dice,
+                accurate->dice);
+    const size_t nc = configs.size();
+    for (const auto& [a, b] : {std::pair{fast, balanced}, std::pair{balanced, accurate}, std::pair{fast, accurate}}) {
+      const size_t ca = static_cast<size_t>(a - means.data()), cb = static_cast<size_t>(b - means.data());
+      std::vector<double> gain;  // ASSD of a minus ASSD of b, per phantom where both ran
+      for (size_t k = 0; k + nc <= rows.size(); k += nc)
+        if (rows[k + ca].run.ok && rows[k + cb].run.ok) gain.push_back(rows[k + ca].run.assdMm - rows[k + cb].run.assdMm);
+      const double n = static_cast<double>(gain.size());
+      double mean = 0, var = 0;
+      for (double g : gain) mean += g / n;
+      for (double g : gain) var += (g - mean) * (g - mean) / std::max(1.0, n - 1);
+      const double se = std::sqrt(var / std::max(1.0, n));
+      std::printf("  per phantom, %s -> %s: ASSD %.3f mm lower on average (paired t %.1f), lower on %ld of %zu "
+                  "(largest rise %.3f mm)\n",
+                  a->config.preset.c_str(), b->config.preset.c_str(), mean, se > 0 ? mean / se : 0.0,
+                  std::count_if(gain.begin(), gain.end(), [](double g) { return g > 0; }), gain.size(),
+                  gain.empty() ? 0.0 : std::max(0.0, -*std::min_element(gain.begin(), gain.end())));
+    }
   }
   std::fflush(stdout);
 
