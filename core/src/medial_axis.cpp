@@ -97,12 +97,20 @@ MedialAxis buildMedialAxis(const TriangleMesh& surface, const MedialAxisOptions&
   }
   const double slab = axis.lengthMm / n;
 
+  // Each vertex's area goes to the two slabs whose centres it lies between, in proportion to its nearness (a tent
+  // over each centre; the end halves to the end slabs alone). Hard slabs would put a ring of vertices lying on a slab
+  // boundary (a symmetric mesh has such rings) wholly or partly on one side by rounding alone, and its centroid off
+  // the axis by up to the radius; shared, a vertex's contribution moves continuously with its position.
   Eigen::VectorXd mass = Eigen::VectorXd::Zero(n);
   Points sum = Points::Zero(n, 3);
   for (int v = 0; v < nv; ++v) {
-    const int j = std::clamp(static_cast<int>(std::floor((s[v] - smin) / slab)), 0, n - 1);
-    mass[j] += area[v];
-    sum.row(j) += area[v] * x.row(v);
+    const double t = std::clamp((s[v] - smin) / slab - 0.5, 0.0, static_cast<double>(n - 1));  // in slab centres
+    const int j = std::min(static_cast<int>(std::floor(t)), n - 2);
+    const double upper = t - j;
+    mass[j] += (1.0 - upper) * area[v];
+    sum.row(j) += ((1.0 - upper) * area[v]) * x.row(v);
+    mass[j + 1] += upper * area[v];
+    sum.row(j + 1) += (upper * area[v]) * x.row(v);
   }
   // The extreme vertices fall in the first and last slabs, so only interior slabs can be empty (or weigh nothing:
   // isolated vertices have no area); interpolate those linearly between the nearest weighted slabs.

@@ -40,9 +40,11 @@ SimplexMesh openCurveMesh(const Points& vertices);
 
 /// Medial axis of a closed tubular surface (RAS mm) by slicing: principal axis = largest-eigenvalue eigenvector of the
 /// area-weighted covariance of the vertices (each vertex weighs a third of its triangles' area); the extent along it
-/// is cut into N equal slabs and axis vertex j is the area-weighted centroid of the vertices in slab j (an empty
-/// interior slab is interpolated between its non-empty neighbours). Throws Error if the surface is not closed or
-/// has no area, ParameterError for spacingMm ≤ 0 or non-finite, or slices in {1, 2} or < 0.
+/// is cut into N equal slabs and axis vertex j is the area-weighted centroid of the vertices about slab j's centre
+/// (each vertex shared between the two nearest slab centres in proportion to its nearness, so that no rounding decides
+/// where a vertex on a slab boundary counts; an interior slab without weight is interpolated between its weighted
+/// neighbours). Throws Error if the surface is not closed or has no area, ParameterError for spacingMm ≤ 0 or
+/// non-finite, or slices in {1, 2} or < 0.
 MedialAxis buildMedialAxis(const TriangleMesh& surface, const MedialAxisOptions& opts = {});
 
 // ------------------------------------------------------------------------------------------------ attachment
