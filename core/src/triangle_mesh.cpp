@@ -97,6 +97,18 @@ double meanEdgeLength(const TriangleMesh& m) {
   return s / (3.0 * m.faceCount());
 }
 
+double offsetToVolume(TriangleMesh& m, double volumeMm3, double limitMm) {
+  double offset = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double area = surfaceArea(m);
+    if (!(area > 0)) break;
+    const double delta = std::clamp((volumeMm3 - enclosedVolume(m)) / area, -limitMm - offset, limitMm - offset);
+    m.vertices += delta * vertexNormals(m);
+    offset += delta;
+  }
+  return offset;
+}
+
 void flipFaces(TriangleMesh& m) { m.faces.col(1).swap(m.faces.col(2)); }
 
 void transformMesh(TriangleMesh& m, const Eigen::Matrix4d& affine) {

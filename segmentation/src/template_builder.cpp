@@ -144,16 +144,7 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
 
   // Volume-preserving offset along the normals: δ = (V_mask − V) / area, twice (the area changes with δ), limited
   // to ±σ so that a thin structure the smoothing nearly erased is not inflated into nonsense.
-  double offset = 0;
-  if (opts.preserveVolume) {
-    for (int pass = 0; pass < 2; ++pass) {
-      const double area = surfaceArea(mesh);
-      if (!(area > 0)) break;
-      const double delta = std::clamp((maskVolume - enclosedVolume(mesh)) / area, -sigma - offset, sigma - offset);
-      mesh.vertices += delta * vertexNormals(mesh);
-      offset += delta;
-    }
-  }
+  const double offset = opts.preserveVolume ? offsetToVolume(mesh, maskVolume, sigma) : 0.0;
   const std::string problem = closedMeshProblem(mesh);
   MSK_ASSERT(problem.empty(), "template of label " + std::to_string(label) + " is not closed: " + problem);
   if (report) {

@@ -39,6 +39,9 @@ Points faceNormals(const TriangleMesh& mesh);
 Points vertexNormals(const TriangleMesh& mesh);
 /// Mean edge length, mm.
 double meanEdgeLength(const TriangleMesh& mesh);
+/// Moves every vertex along its vertex normal by one distance δ = (volumeMm3 − V) / area, twice (the area changes with
+/// δ), so that the closed mesh encloses about `volumeMm3`; the total offset is kept within ±limitMm. Returns it (mm).
+double offsetToVolume(TriangleMesh& mesh, double volumeMm3, double limitMm);
 /// Reverses every triangle's winding.
 void flipFaces(TriangleMesh& mesh);
 /// Applies x' = A x + t (A = affine.topLeftCorner(3,3)); flips windings when det(A) < 0 so normals stay outward.
