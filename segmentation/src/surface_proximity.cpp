@@ -16,15 +16,16 @@
 #include <memory>
 #include <string>
 
+#include "cgal_mesh.h"
 #include "msk/core/error.h"
 
 namespace msk {
 
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Kernel = detail::CgalKernel;
 using Point = Kernel::Point_3;
-using Mesh = CGAL::Surface_mesh<Point>;
+using Mesh = detail::CgalMesh;
 using Primitive = CGAL::AABB_face_graph_triangle_primitive<Mesh>;
 using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
 using Side = CGAL::Side_of_triangle_mesh<Mesh, Kernel, CGAL::Default, Tree>;
@@ -48,14 +49,7 @@ class Surface {
  public:
   explicit Surface(const TriangleMesh& m) : vertices_(m.vertices), box_(m.vertices) {
     if (m.faceCount() == 0) throw Error("surface proximity: a mesh has no faces");
-    std::vector<Mesh::Vertex_index> id;
-    id.reserve(static_cast<size_t>(m.vertexCount()));
-    for (int v = 0; v < m.vertexCount(); ++v)
-      id.push_back(mesh_.add_vertex(Point(m.vertices(v, 0), m.vertices(v, 1), m.vertices(v, 2))));
-    for (int f = 0; f < m.faceCount(); ++f)
-      if (mesh_.add_face(id[static_cast<size_t>(m.faces(f, 0))], id[static_cast<size_t>(m.faces(f, 1))],
-                         id[static_cast<size_t>(m.faces(f, 2))]) == Mesh::null_face())
-        throw Error("surface proximity: face " + std::to_string(f) + " makes the surface non-manifold");
+    mesh_ = detail::toCgalMesh(m, "surface proximity");
     tree_ = std::make_unique<Tree>(faces(mesh_).first, faces(mesh_).second, mesh_);
     tree_->accelerate_distance_queries();
     side_ = std::make_unique<Side>(*tree_);
