@@ -84,16 +84,17 @@ struct ObjectFigures {
   std::string name, kind;
   int label = 0;
   double dice = 0, assdMm = 0, meshAssdMm = 0, templateDice = 0;
+  size_t selfIntersections = 0;  ///< face pairs of the output surface that cross each other
 };
 
 void writeCsv(const std::string& path, const std::vector<ObjectFigures>& objects) {
   std::ofstream f(path);
   if (!f) throw IoError(path, "cannot write");
-  f << "name,label,kind,dice,assd_mm,mesh_assd_mm,template_dice\n";
+  f << "name,label,kind,dice,assd_mm,mesh_assd_mm,template_dice,self_intersections\n";
   char line[256];
   for (const ObjectFigures& o : objects) {
-    std::snprintf(line, sizeof line, "%s,%d,%s,%.4f,%.3f,%.3f,%.4f\n", o.name.c_str(), o.label, o.kind.c_str(), o.dice,
-                  o.assdMm, o.meshAssdMm, o.templateDice);
+    std::snprintf(line, sizeof line, "%s,%d,%s,%.4f,%.3f,%.3f,%.4f,%zu\n", o.name.c_str(), o.label, o.kind.c_str(),
+                  o.dice, o.assdMm, o.meshAssdMm, o.templateDice, o.selfIntersections);
     f << line;
   }
   if (!f) throw IoError(path, "write failed");
@@ -170,6 +171,7 @@ int benchScene(const std::vector<std::string>& argv) {
     f.assdMm = m.assd;
     f.meshAssdMm = meshMetrics(res.objects[i].mesh, o.truth, 1.0, 1.0).assd;
     f.templateDice = meshMetrics(o.templ, o.truth, 1.0, 0.05).dice;
+    f.selfIntersections = res.objects[i].selfIntersections;
     figures.push_back(f);
   }
   const double scoreSeconds = secondsSince(scoreStart);
@@ -237,7 +239,11 @@ int benchScene(const std::vector<std::string>& argv) {
   std::printf("%-26s %5s  %6.3f  %8.2f  %9.2f   (min Dice %.3f)\n", "mean", "", diceSum / n, assdSum / n, meshSum / n,
               diceMin);
   double deepest = 0;
-  std::printf("\noverlap voxels: %zu\npenetration per pair (mm):", res.overlapVoxels);
+  size_t crossings = 0, crossing = 0;  // face pairs of the output surfaces that cross, and objects with any
+  for (const ObjectFigures& f : figures) crossings += f.selfIntersections, crossing += f.selfIntersections > 0;
+  std::printf(
+      "\noverlap voxels: %zu\nself-intersecting face pairs: %zu (in %zu of %zu surfaces)\npenetration per pair (mm):",
+      res.overlapVoxels, crossings, crossing, figures.size());
   for (size_t k = 0; k < scene.collisions.size() && k < res.pairPenetrationMm.size(); ++k) {
     if (k % 4 == 0) std::printf("\n ");
     std::printf(" %s %.2f", pairName(scene, k, "|").c_str(), res.pairPenetrationMm[k]);
@@ -273,6 +279,7 @@ int benchScene(const std::vector<std::string>& argv) {
     j["seconds_per_family"] = std::move(fam);
     j["peak_rss_mib"] = peak;
     j["overlap_voxels"] = static_cast<unsigned long>(res.overlapVoxels);
+    j["self_intersections"] = static_cast<unsigned long>(crossings);
     j["feature_scales_built"] = res.featureScalesBuilt;
     j["collision_sets_built"] = res.collisionSetsBuilt;
     j["separation_sweeps"] = res.separationSweeps;
@@ -287,6 +294,7 @@ int benchScene(const std::vector<std::string>& argv) {
       o["assd_mm"] = f.assdMm;
       o["mesh_assd_mm"] = f.meshAssdMm;
       o["template_dice"] = f.templateDice;
+      o["self_intersections"] = static_cast<unsigned long>(f.selfIntersections);
       objs.push(std::move(o));
     }
     j["objects"] = std::move(objs);

@@ -37,7 +37,7 @@ const std::set<std::string>& segmentValuedOptions() {
 
 const std::set<std::string>& segmentFlags() {
   static const std::set<std::string> names = {"help",       "no-qc",  "no-collisions", "edge-focusing",
-                                              "edge-level", "refine", "axis-first"};
+                                              "edge-level", "refine", "axis-first",    "keep-template-mesh"};
   return names;
 }
 
@@ -88,6 +88,7 @@ SegmentOptions segmentOptionsFrom(const Args& args) {
   opts.edgeLevel = args.has("edge-level");
   opts.refinePass = args.has("refine");
   opts.axisFirst = args.has("axis-first");
+  opts.remeshTemplates = !args.has("keep-template-mesh");
   opts.collisionGapMm = args.num("collision-gap", opts.collisionGapMm);
   opts.collisionProximityMm = args.num("collision-proximity", opts.collisionProximityMm);
   opts.collisionFriction = args.num("friction", opts.collisionFriction);
@@ -153,6 +154,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
            "  --collision-resolution sequential|global   contacts of pairs without \"resolution\" in the scene:\n"
            "                    projected one by one (default) or solved together by conjugate gradient\n"
            "  --separation-sweeps N   most sweeps separating the output surfaces of each pair at the end (default 32)\n"
+           "  --keep-template-mesh   evolve every template on its own triangulation (default: muscles' and generic\n"
+           "                    objects' templates are remeshed isotropically to their vertex count first, so their\n"
+           "                    output surfaces do not fold onto themselves; bones keep theirs; scene key \"remesh\"\n"
+           "                    per object wins)\n"
            "advanced (relative to the voxel size, so they hold at any resolution):\n"
            "  --sigma-fine, --sigma-coarse  image smoothing at the finest/coarsest level, x smallest spacing\n"
            "                                (defaults 0.5 (accurate: 0.25) and 1.5)\n"
@@ -241,6 +246,14 @@ int cmdSegment(const std::vector<std::string>& argv) {
       j["seconds"] = o.seconds;
       j["volume_mm3"] = o.volumeMm3;
       j["template_volume_mm3"] = o.templateVolumeMm3;
+      j["template_vertices"] = o.templateVertices;
+      j["template_remeshed"] = o.remeshed;
+      j["self_intersections"] = static_cast<double>(o.selfIntersections);
+      j["folds_unfolded"] = static_cast<double>(o.foldsFound);
+      j["vertices_unfolded"] = o.unfoldedVertices;
+      if (o.selfIntersections > 0)
+        log::warn(o.name + ": " + std::to_string(o.selfIntersections) +
+                  " pairs of faces of its surface cross each other");
       if (o.volumeMesh.tetCount() > 0) {
         // A tet mesh with inverted elements is not written (it would not be a valid volume); the report says so.
         Json vm;

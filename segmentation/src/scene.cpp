@@ -21,10 +21,9 @@ namespace {
 const std::vector<std::string> kTopKeys = {"objects", "collisions", "phantom", "description"};
 const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "template", "polarity",
                                               "force", "model", "profiles_from"};
-const std::vector<std::string> kModelKeys = {"shape_memory",    "internal_stiffness", "global_prior",
-                                             "image_force",     "medial_axis",        "radial_stiffness",
-                                             "axis_spacing_mm", "axis_first",         "volumetric",
-                                             "volume_stiffness", "refine"};
+const std::vector<std::string> kModelKeys = {"shape_memory", "internal_stiffness", "global_prior",    "image_force",
+                                             "medial_axis",  "radial_stiffness",   "axis_spacing_mm", "axis_first",
+                                             "volumetric",   "volume_stiffness",   "refine",          "remesh"};
 const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction",
                                                      "mode",   "target",       "resolution"};
 const std::vector<std::string> kForces = {"gradient", "profile"};
@@ -180,6 +179,8 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   }
   bool refine = false;
   if (check.boolean(*model, "refine", at, &refine)) m.refine = refine;
+  bool remesh = false;
+  if (check.boolean(*model, "remesh", at, &remesh)) m.remesh = remesh;
 
   check.boolean(*model, "volumetric", at, &m.volumetric);
   if (check.number(*model, "volume_stiffness", Checker::Range::UnitInterval, at, &m.volumeStiffness) && !m.volumetric)

@@ -84,6 +84,43 @@ TEST(SegmentCli, WritesMeshesLabelsReportAndPictures) {
   EXPECT_EQ(a.sform, b.sform);
 }
 
+// A muscle's template is remeshed before the evolution (its output then has about the template's vertex count on
+// another triangulation), a bone's is not; --keep-template-mesh keeps the muscle's too. The report says what was done
+// and how many face pairs of each written surface cross each other (none here).
+TEST(SegmentCli, MuscleTemplatesAreRemeshedAndTheReportCountsCrossingFaces) {
+  msk::test::ScratchDir dir;
+  const std::string scene = dir.file("scene.json");
+  msk::test::writeBytes(
+      scene, "{\"objects\": [{\"name\": \"femur\", \"label\": 1, \"kind\": \"bone\", \"template\": \"" + kSample +
+                 "template_femur.vtk\"}, {\"name\": \"hamstrings\", \"label\": 3, " +
+                 "\"kind\": \"muscle\", \"template\": \"" + kSample + "template_hamstrings.vtk\"}]}");
+  for (bool keep : {false, true}) {
+    const std::string out = dir.file(keep ? "kept" : "remeshed");
+    std::vector<std::string> args = {
+        "segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--quality", "fast", "--no-qc"};
+    if (keep) args.push_back("--keep-template-mesh");
+    const auto r = runCli(args);
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const msk::Json rep = msk::Json::readFile(out + "/report.json");
+    EXPECT_EQ(rep.at("parameters").at("remesh_templates").asBool(), !keep);
+    const msk::Json& femur = rep.at("objects").asArray()[0];
+    const msk::Json& muscle = rep.at("objects").asArray()[1];
+    EXPECT_FALSE(femur.at("template_remeshed").asBool());
+    EXPECT_EQ(femur.at("vertices").asInt(), femur.at("template_vertices").asInt());
+    EXPECT_EQ(muscle.at("template_remeshed").asBool(), !keep);
+    const int tv = muscle.at("template_vertices").asInt(), v = muscle.at("vertices").asInt();
+    if (keep)
+      EXPECT_EQ(v, tv);
+    else
+      EXPECT_NEAR(v, tv, 0.1 * tv);
+    for (const msk::Json& o : rep.at("objects").asArray()) {
+      EXPECT_EQ(o.at("self_intersections").asNumber(), 0.0) << o.dump();
+      EXPECT_GE(o.at("folds_unfolded").asNumber(), 0.0) << o.dump();
+    }
+    EXPECT_EQ(msk::readMesh(out + "/hamstrings.vtk").vertexCount(), v);
+  }
+}
+
 TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
   msk::test::ScratchDir dir;
   const std::string out = dir.file("out");

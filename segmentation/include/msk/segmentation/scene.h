@@ -39,6 +39,10 @@ struct ObjectModel {
   /// "refine": the object takes part in the refinement pass (SegmentOptions::refinePass: its converged surface as its
   /// reference shape, the gradient force with the edge level); unset = the run's
   std::optional<bool> refine;
+  /// "remesh": the template is remeshed isotropically before the evolution (SegmentOptions::remeshTemplates); false
+  /// keeps its own triangulation (the output is then on it); unset = the run's for muscles and generic objects, kept
+  /// for bones (segmenter.h)
+  std::optional<bool> remesh;
   bool volumetric = false;        ///< "volumetric": a coupled 3-simplex volume model
   double volumeStiffness = -1;    ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
 };

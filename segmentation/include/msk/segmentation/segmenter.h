@@ -77,6 +77,17 @@ struct SegmentOptions {
   /// missing septum) otherwise pull at full length step after step and the surface buckles between them. Bones are
   /// not limited: their edges are strong, and the limit cost the real CT femur 0.01 Dice.
   double muscleTargetStepEdges = 1.0;
+  /// Each muscle's and generic object's template (bones keep theirs unless their model asks; the scene's per-object
+  /// "remesh" wins; volumetric objects are not remeshed: their surface is the boundary of their tetrahedralisation,
+  /// made of well-shaped facets) is first remeshed isotropically to its own vertex count (remeshIsotropic()): the long
+  /// thin triangles of a decimated muscle template make a 2-simplex dual whose vertices fold under the image forces,
+  /// and the output surface then intersects itself (README, *Surface quality*). The output is on the remeshed
+  /// triangulation, the same for every run from the same template.
+  bool remeshTemplates = true;
+  /// Local folds an output surface still has (faces crossing each other where it was squeezed between partners or
+  /// pulled by noise) are smoothed away: after the evolution, and after the output separation (then separated again).
+  /// unfoldSurface(); each object reports what it found and moved.
+  bool unfoldSurfaces = true;
   InternalMode internalMode = InternalMode::ShapeMemory;       ///< shape memory or smoothing
   bool collisions = true;       ///< respond to the scene's collision pairs (false: objects ignore each other)
   double collisionGapMm = 0.2;  ///< default clearance g kept between partners (a pair in the scene may override)
@@ -170,6 +181,12 @@ struct ObjectResult {
   /// What the volume model's volume constraint decided (volume_preservation.h): "holding" the template's volume,
   /// "following" the image (it demanded another), or "observing" (never settled); empty without a volume model.
   std::string volumeDecision;
+  bool remeshed = false;     ///< the template was remeshed (SegmentOptions::remeshTemplates, "remesh")
+  int templateVertices = 0;  ///< vertices of the template as given
+  /// Pairs of faces of the output surface that cross each other (selfIntersections(); 0 = embedded)
+  size_t selfIntersections = 0;
+  size_t foldsFound = 0;     ///< crossing face pairs unfoldSurface() found, summed over its calls
+  int unfoldedVertices = 0;  ///< vertices it moved, summed over its calls
 };
 
 /// The result of a scene.
