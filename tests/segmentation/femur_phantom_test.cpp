@@ -19,8 +19,8 @@ struct Case {
   Eigen::Vector3d spacing, oblique;
 };
 
-void checkFemur(const std::string& what, const msk::ImageF& image, const msk::LabelMap& truthLabels,
-                const msk::TriangleMesh& truthMesh, const msk::TriangleMesh& templ) {
+/// A scene of the femur alone (label 1) from `templ`.
+msk::Scene femurScene(const msk::TriangleMesh& templ) {
   msk::Scene scene;
   msk::SceneObject femur;
   femur.name = "femur";
@@ -28,7 +28,12 @@ void checkFemur(const std::string& what, const msk::ImageF& image, const msk::La
   femur.kind = msk::ObjectKind::Bone;
   femur.templ = templ;
   scene.objects.push_back(femur);
-  const msk::SegmentationResult res = msk::segmentScene(image, scene, msk::SegmentOptions{});
+  return scene;
+}
+
+void checkFemur(const std::string& what, const msk::ImageF& image, const msk::LabelMap& truthLabels,
+                const msk::TriangleMesh& truthMesh, const msk::TriangleMesh& templ) {
+  const msk::SegmentationResult res = msk::segmentScene(image, femurScene(templ), msk::SegmentOptions{});
   const msk::SegmentationMetrics vox = msk::labelMetrics(res.labels, 1, truthLabels, 1);
   const msk::SegmentationMetrics mesh = msk::meshMetrics(res.objects[0].mesh, truthMesh);
   const msk::SegmentationMetrics start = msk::meshMetrics(templ, truthMesh);
@@ -92,13 +97,7 @@ TEST(FemurPhantom, PresetsGainAccuracyFromFastToAccurate) {
   int cases = 0;
   auto run = [&](const std::string& what, const msk::ImageF& image, const msk::TriangleMesh& truth,
                  const msk::TriangleMesh& templ) {
-    msk::Scene scene;
-    msk::SceneObject femur;
-    femur.name = "femur";
-    femur.label = 1;
-    femur.kind = msk::ObjectKind::Bone;
-    femur.templ = templ;
-    scene.objects.push_back(femur);
+    const msk::Scene scene = femurScene(templ);
     double assd[3];
     for (int q = 0; q < 3; ++q) {
       msk::SegmentOptions o;

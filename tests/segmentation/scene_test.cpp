@@ -670,30 +670,31 @@ TEST(Scene, AxisFirstNeedsAMedialAxisAndNamesTheKeyAndTheObject) {
                    {"objects[0] (femur) model: unknown key \"axis_frist\"", "axis_first"});
 }
 
-// "refine" (the refinement pass): read as given, unset otherwise (the run's default); not a boolean is an error naming
-// the key and the object.
-TEST(Scene, RefineIsReadPerObject) {
+namespace {
+// A boolean model key `key` (read by `get`): true, false and unset on three objects; a value that is not a boolean is
+// an error naming the key and the object.
+void expectBooleanModelKeyPerObject(const std::string& key,
+                                    const std::function<std::optional<bool>(const msk::ObjectModel&)>& get) {
   SceneFiles f;
   const std::string text = R"({"objects": [
-      {"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk", "model": {"refine": true}},
-      {"name": "quad", "label": 2, "kind": "muscle", "template": "b.vtk", "model": {"refine": false}},
+      {"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk", "model": {")" +
+                           key + R"(": true}},
+      {"name": "quad", "label": 2, "kind": "muscle", "template": "b.vtk", "model": {")" +
+                           key + R"(": false}},
       {"name": "ham", "label": 3, "kind": "muscle", "template": "b.vtk"}]})";
-  expectTrueFalseUnset(msk::loadScene(f.scene(text)), [](const msk::ObjectModel& m) { return m.refine; });
-  expectSceneError(f.scene(twoObjects(R"(, "model": {"refine": 1})"), "not_bool.json"),
-                   {"objects[0] (femur) model: \"refine\" must be true or false, found number"});
+  expectTrueFalseUnset(msk::loadScene(f.scene(text)), get);
+  expectSceneError(f.scene(twoObjects(R"(, "model": {")" + key + R"(": 1})"), "not_bool.json"),
+                   {"objects[0] (femur) model: \"" + key + "\" must be true or false, found number"});
+}
+}  // namespace
+
+// "refine" (the refinement pass): read as given, unset otherwise (the run's default).
+TEST(Scene, RefineIsReadPerObject) {
+  expectBooleanModelKeyPerObject("refine", [](const msk::ObjectModel& m) { return m.refine; });
 }
 
 // "remesh" (isotropic remeshing of the template): read as given, unset otherwise (the run's for muscles, kept for
-// bones: segmenter.h); not a boolean is an error naming the key and the object.
+// bones: segmenter.h).
 TEST(Scene, RemeshIsReadPerObject) {
-  SceneFiles f;
-  const std::string text = R"({"objects": [
-      {"name": "quad", "label": 1, "kind": "muscle", "template": "a.vtk", "model": {"remesh": true}},
-      {"name": "ham", "label": 2, "kind": "muscle", "template": "b.vtk", "model": {"remesh": false}},
-      {"name": "add", "label": 3, "kind": "muscle", "template": "b.vtk"}]})";
-  expectTrueFalseUnset(msk::loadScene(f.scene(text)), [](const msk::ObjectModel& m) { return m.remesh; });
-  const msk::Scene bone = msk::loadScene(f.scene(twoObjects(R"(, "model": {"remesh": true})"), "bone.json"));
-  EXPECT_EQ(bone.objects[0].model.remesh, std::optional<bool>(true));
-  expectSceneError(f.scene(twoObjects(R"(, "model": {"remesh": "yes"})"), "not_bool.json"),
-                   {"objects[0] (femur) model: \"remesh\" must be true or false, found string"});
+  expectBooleanModelKeyPerObject("remesh", [](const msk::ObjectModel& m) { return m.remesh; });
 }
