@@ -627,6 +627,7 @@ void finishObject(ObjectState& st, bool unfold) {
     const UnfoldReport u = unfoldSurface(out.mesh);
     out.foldsFound = u.before;
     out.unfoldedVertices = u.verticesMoved;
+    out.selfIntersections = u.after;
   }
   out.mesh.pointData["displacement_mm"] = (out.mesh.vertices - st.lv[0].triangles.vertices).rowwise().norm();
   if (st.volume) {
@@ -1000,7 +1001,9 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.secondsPerStage["separation"] = since(ts);
   }
   if (res.collisionSetsBuilt > 0) res.secondsPerStage["collision-detection"] = collisionDetectSeconds;
-  {  // what is written out: does any surface cross itself?
+  // What is written out: does any surface cross itself? (The unfolding in finishObject() counted it already unless the
+  // separation has moved the surfaces since.)
+  if (!opts.unfoldSurfaces || !inside.empty()) {
     const auto tq = Clock::now();
     for (ObjectResult& o : res.objects) o.selfIntersections = selfIntersections(o.mesh);
     res.secondsPerStage["surface-check"] = since(tq);
