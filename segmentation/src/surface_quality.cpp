@@ -25,10 +25,11 @@ void requireClosed(const TriangleMesh& mesh, const char* caller) {
   if (!problem.empty()) throw Error(std::string(caller) + ": the surface is not closed: " + problem);
 }
 
-size_t countSelfIntersections(const CgalMesh& m) {
+/// The pairs of faces of `m` that cross each other.
+std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> crossingPairs(const CgalMesh& m) {
   std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> pairs;
   PMP::self_intersections(m, std::back_inserter(pairs));
-  return pairs.size();
+  return pairs;
 }
 
 }  // namespace
@@ -37,7 +38,7 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
   if (targetVertices < 4) throw ParameterError("targetVertices", std::to_string(targetVertices), "must be at least 4");
   requireClosed(mesh, "remeshIsotropic");
   const CgalMesh input = detail::toCgalMesh(mesh, "remeshIsotropic");
-  const bool inputEmbedded = countSelfIntersections(input) == 0;
+  const bool inputEmbedded = crossingPairs(input).empty();
   // A closed genus-0 triangulation with V vertices has 2V − 4 faces; equilateral ones of edge L cover √3/4 L² each.
   // The remesher splits edges longer than 4/3 L and collapses those shorter than 4/5 L, and ends with about 15 % more
   // vertices than that count (measured on 27 phantom muscle templates): L is set 7 % longer for it.
@@ -51,7 +52,7 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
     // Its vertices lie on the input's faces, so its chords cut the input's bends: offset back to the input's volume
     // (by a small fraction of an edge; a coarse ellipsoid of 162 vertices lost 3 % of its volume without it).
     offsetToVolume(out, enclosedVolume(mesh), 0.25 * edge);
-    if (inputEmbedded && selfIntersections(out) > 0) continue;
+    if (inputEmbedded && !crossingPairs(detail::toCgalMesh(out, "remeshIsotropic")).empty()) continue;
     return out;
   }
   return mesh;
@@ -59,7 +60,7 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
 
 size_t selfIntersections(const TriangleMesh& mesh) {
   requireClosed(mesh, "selfIntersections");
-  return countSelfIntersections(detail::toCgalMesh(mesh, "selfIntersections"));
+  return crossingPairs(detail::toCgalMesh(mesh, "selfIntersections")).size();
 }
 
 UnfoldReport unfoldSurface(TriangleMesh& mesh, int maxRounds) {
@@ -71,8 +72,7 @@ UnfoldReport unfoldSurface(TriangleMesh& mesh, int maxRounds) {
   const Points start = mesh.vertices;
   std::vector<char> moved(ring.size(), 0);
   for (int round = 0;; ++round) {
-    std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> pairs;
-    PMP::self_intersections(detail::toCgalMesh(mesh, "unfoldSurface"), std::back_inserter(pairs));
+    const auto pairs = crossingPairs(detail::toCgalMesh(mesh, "unfoldSurface"));
     if (round == 0) rep.before = pairs.size();
     rep.after = pairs.size();
     if (pairs.empty() || round == maxRounds) break;
