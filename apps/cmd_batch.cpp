@@ -24,11 +24,10 @@
 #include <string>
 #include <vector>
 
-#include "args.h"
 #include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/core/log.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -117,16 +116,16 @@ std::string caseFile(const fs::path& dir, const std::string& pattern, std::strin
 void readResults(Case& c, bool scored) {
   Json report;
   try {
-    report = Json::readFile(c.out + "/report.json");
+    report = readJsonFile(c.out + "/report.json");
     double residual = 0, change = 0;
-    for (const Json& o : report.at("objects").asArray()) {
-      residual = std::max(residual, o.at("mean_image_residual_mm").asNumber());
-      const double v = o.at("volume_mm3").asNumber(), v0 = o.at("template_volume_mm3").asNumber();
+    for (const Json& o : report.at("objects")) {
+      residual = std::max(residual, o.at("mean_image_residual_mm").get<double>());
+      const double v = o.at("volume_mm3").get<double>(), v0 = o.at("template_volume_mm3").get<double>();
       if (v0 > 0) change = std::max(change, 100.0 * std::abs(v / v0 - 1.0));
     }
     c.worstResidualMm = residual;
     c.worstVolumeChangePct = change;
-    c.overlapVoxels = report.at("overlap_voxels").asNumber();
+    c.overlapVoxels = report.at("overlap_voxels").get<double>();
   } catch (const std::exception& e) {
     c.message = std::string("report not read: ") + e.what();
   }
@@ -138,10 +137,10 @@ void readResults(Case& c, bool scored) {
   try {
     const LabelMap result = readNifti<int32_t>(c.out + "/labels.nii.gz");
     const LabelMap reference = readNifti<int32_t>(c.reference);
-    for (const Json& o : report.at("objects").asArray()) {
+    for (const Json& o : report.at("objects")) {
       ObjectScore s;
-      s.name = o.at("name").asString();
-      s.label = o.at("label").asInt();
+      s.name = o.at("name").get<std::string>();
+      s.label = o.at("label").get<int>();
       const SegmentationMetrics m = labelMetrics(result, s.label, reference, s.label);
       s.dice = m.dice;
       s.assdMm = m.assd;
@@ -222,84 +221,96 @@ void say(const std::string& line) {
   if (log::level() <= LogLevel::Info) std::cerr << "mskseg batch: " << line << std::endl;
 }
 
-}  // namespace
+/// What a batch was asked to do.
+struct BatchSettings {
+  std::string casesDir, scene, out, imageName = "image.nii.gz", referenceName;
+  int jobs = 1;
+  bool redo = false;
+  std::vector<std::string> forwarded;  ///< options after "--", for every case's `mskseg segment`
+  fs::path outAbs;                     ///< `out`, absolute
+};
 
-int cmdBatch(const std::vector<std::string>& argvIn) {
-  // Everything after "--" goes to every case's `mskseg segment` as it is.
-  std::vector<std::string> argv, forwarded;
+/// The batch's command line; the options after "--" are checked as `mskseg segment` would (a mistake in them stops
+/// the batch before anything runs or is written). Returns false if --help was asked.
+bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
+  std::vector<std::string> argv;
   const auto dash = std::find(argvIn.begin(), argvIn.end(), std::string("--"));
   argv.assign(argvIn.begin(), dash);
-  if (dash != argvIn.end()) forwarded.assign(dash + 1, argvIn.end());
-  Args args(argv, {"cases", "scene", "out", "image", "reference", "jobs"}, {"help", "redo"});
-  if (args.has("help")) {
-    std::cout
-        << "usage: mskseg batch --cases DIR --scene SCENE.json --out DIR [--image NAME] [--reference NAME]\n"
-           "                    [--jobs N] [--redo] [-- segment options]\n\n"
-           "Segments every case of a cohort with one scene: each subfolder of --cases holding the image NAME\n"
-           "(default image.nii.gz) is a case. A case folder's own scene.json, if present, replaces --scene for it.\n"
-           "Each case runs `mskseg segment` in a process of its own (a failing case ends alone) and writes\n"
-           "OUT/<case>/ (meshes, labels.nii.gz, report.json with every parameter, QC pictures), whole or not at\n"
-           "all; its log goes to OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists\n"
-           "(an interrupted batch resumes), unless --redo.\n"
-           "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, what needs no\n"
-           "reference to flag a doubtful case (largest mean image residual and volume change of an object,\n"
-           "voxels inside two objects), Dice, message),\n"
-           "rewritten as each case ends, OUT/metrics.csv with --reference, and OUT/batch.json (the command,\n"
-           "version, counts, times).\n"
-           "  --image NAME      the image file in each case folder (default image.nii.gz), or a shell pattern\n"
-           "                    matching one file there, e.g. '*_T1w.nii.gz' (quoted)\n"
-           "  --reference NAME  a label map in each case folder (a name or a pattern, as --image): each object's\n"
-           "                    Dice, ASSD and HD95 against it for the object's label (OUT/metrics.csv)\n"
-           "  --jobs N          cases run at once (default 1; each case's --threads come after --)\n"
-           "  --redo            run the cases already done again\n"
-           "  -- OPTIONS        passed to every `mskseg segment`, e.g. -- --quality fast --no-qc\n"
-           "Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 for a usage error\n"
-           "(the options after -- included: they are checked before any case runs).\n";
-    return 0;
+  if (dash != argvIn.end()) b.forwarded.assign(dash + 1, argvIn.end());
+  CommandLine app(
+      "batch",
+      "Segments every case of a cohort with one scene: each subfolder of --cases holding the image NAME is a case; "
+      "a case folder's own scene.json, if present, replaces --scene for it. Each case runs `mskseg segment` in a "
+      "process of its own (a failing case ends alone) and writes OUT/<case>/ whole or not at all; its log goes to "
+      "OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists, unless --redo.");
+  app.add_option("--cases", b.casesDir, "the cohort folder")->required();
+  app.add_option("--scene", b.scene, "the scene of every case without a scene.json of its own");
+  app.add_option("--out", b.out, "output folder")->required();
+  app.add_option("--image", b.imageName,
+                 "the image file in each case folder (default image.nii.gz), or a shell pattern matching one file "
+                 "there, e.g. '*_T1w.nii.gz' (quoted)");
+  app.add_option("--reference", b.referenceName,
+                 "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
+                 "HD95 against it for the object's label (OUT/metrics.csv)");
+  app.add_option("--jobs", b.jobs, "cases run at once, 1..64 (default 1; each case's --threads come after --)");
+  app.add_flag("--redo", b.redo, "run the cases already done again");
+  app.footer(
+      "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs).\n"
+      "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, the checks that need no "
+      "reference: largest mean image residual and volume change of an object, voxels inside two objects; Dice; "
+      "message), rewritten as each case ends; OUT/metrics.csv with --reference; OUT/batch.json (the command, "
+      "version, counts, times). Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 "
+      "for a usage error.");
+  if (!parseArgs(app, argv)) return false;
+  {
+    CommandLine segment("segment", "");
+    SegmentOptions opts;
+    SegmentOutputs outputs;
+    addSegmentOptions(segment, opts, outputs);
+    for (const char* own : {"--image", "--scene", "--out", "--help", "-h"})
+      if (std::find(b.forwarded.begin(), b.forwarded.end(), own) != b.forwarded.end())
+        throw UsageError(std::string("option ") + own + " after --: the batch sets it for each case");
+    try {
+      parseArgs(segment, b.forwarded);
+    } catch (const UsageError& e) {
+      throw UsageError(std::string(e.what()) + " (after --)");
+    }
+    checkSegmentOptions(opts);
   }
-  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
-  {  // the forwarded options, checked here: a mistake in them stops the batch before anything runs or is written
-    const Args segment(forwarded, segmentValuedOptions(), segmentFlags());
-    if (!segment.positional().empty())
-      throw UsageError("unexpected argument '" + segment.positional()[0] + "' after --");
-    for (const char* own : {"image", "scene", "out", "help"})
-      if (segment.has(own))
-        throw UsageError(std::string("option --") + own + " after --: the batch sets it for each case");
-    segmentOptionsFrom(segment);
-    parseMeshSpace(segment.str("mesh-space", "lps"));
-  }
-  const long jobs = args.integer("jobs", 1);
-  if (jobs < 1 || jobs > 64) throw ParameterError("--jobs", args.str("jobs"), "must be 1..64");
-  const std::string casesDir = args.str("cases"), out = args.str("out");
-  const std::string imageName = args.str("image", "image.nii.gz"), referenceName = args.str("reference", "");
-  const std::string scene = args.has("scene") ? fs::absolute(args.str("scene")).string() : "";
-  const bool redo = args.has("redo"), scored = !referenceName.empty();
+  if (b.jobs < 1 || b.jobs > 64) throw ParameterError("--jobs", std::to_string(b.jobs), "must be 1..64");
   std::error_code ec;
-  if (!fs::is_directory(casesDir, ec))
-    throw IoError(casesDir, fs::exists(casesDir, ec) ? "is not a folder" : "no such folder");
-  if (!scene.empty() && !fs::is_regular_file(scene, ec)) throw IoError(args.str("scene"), "no such file");
-  checkOutputFolder(out);
-  const fs::path outAbs = fs::absolute(out).lexically_normal();
+  if (!fs::is_directory(b.casesDir, ec))
+    throw IoError(b.casesDir, fs::exists(b.casesDir, ec) ? "is not a folder" : "no such folder");
+  if (!b.scene.empty()) {
+    if (!fs::is_regular_file(b.scene, ec)) throw IoError(b.scene, "no such file");
+    b.scene = fs::absolute(b.scene).string();
+  }
+  checkOutputFolder(b.out);
+  b.outAbs = fs::absolute(b.out).lexically_normal();
+  return true;
+}
 
-  // The cases: subfolders holding the image, in name order; hidden folders and the output folder are not cases.
-  std::vector<Case> cases;
+/// The cases: subfolders holding the image, in name order; hidden folders and the output folder are not cases.
+/// Returns how many can run.
+int findCases(const BatchSettings& b, std::vector<Case>& cases) {
+  std::error_code ec;
   std::vector<fs::path> folders;
-  for (const auto& e : fs::directory_iterator(casesDir, ec))
+  for (const auto& e : fs::directory_iterator(b.casesDir, ec))
     if (e.is_directory() && e.path().filename().string()[0] != '.' &&
-        fs::absolute(e.path()).lexically_normal() != outAbs)
+        fs::absolute(e.path()).lexically_normal() != b.outAbs)
       folders.push_back(e.path());
-  if (ec) throw IoError(casesDir, "cannot list: " + ec.message());
+  if (ec) throw IoError(b.casesDir, "cannot list: " + ec.message());
   std::sort(folders.begin(), folders.end());
   int runnable = 0;
   for (const fs::path& f : folders) {
     Case c;
     c.name = f.filename().string();
     std::string problem;
-    c.image = caseFile(f, imageName, problem);
-    if (scored) c.reference = caseFile(f, referenceName, c.referenceProblem);
-    c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : scene;
-    c.out = (outAbs / c.name).string();
-    c.log = (outAbs / "logs" / (c.name + ".log")).string();
+    c.image = caseFile(f, b.imageName, problem);
+    if (!b.referenceName.empty()) c.reference = caseFile(f, b.referenceName, c.referenceProblem);
+    c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : b.scene;
+    c.out = (b.outAbs / c.name).string();
+    c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
     if (c.image.empty() && problem.rfind("no ", 0) == 0) {
       c.status = "skipped";
       c.message = problem;
@@ -315,60 +326,66 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     }
     cases.push_back(c);
   }
-  if (scene.empty() && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
+  if (b.scene.empty() && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
     throw UsageError("missing required option --scene (no case folder has a scene.json of its own)");
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
-    throw IoError(casesDir, "no case: no subfolder holds " + imageName);
-  // A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
-  // writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes (not one whose
-  // process still runs, e.g. another batch on the same folder).
-  if (fs::is_directory(outAbs, ec))
-    for (const auto& e : fs::directory_iterator(outAbs, ec)) {
-      const std::string n = e.path().filename().string();
-      for (const Case& c : cases) {
-        const std::string prefix = "." + c.name + ".partial";
-        if (n.rfind(prefix, 0) != 0) continue;
-        const long pid = std::atol(n.c_str() + prefix.size());  // still being written by a live process: leave it
-        if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) == 0) continue;
-        fs::remove_all(e.path(), ec);
-      }
-    }
-  fs::create_directories(outAbs / "logs", ec);
-  if (ec) throw IoError((outAbs / "logs").string(), "cannot create folder: " + ec.message());
+    throw IoError(b.casesDir, "no case: no subfolder holds " + b.imageName);
+  return runnable;
+}
 
-  // Cases done by an earlier run keep their results (and get scored, so the summary covers the whole cohort).
-  std::vector<size_t> todo;
-  int doneEarlier = 0;
-  for (size_t i = 0; i < cases.size(); ++i) {
-    Case& c = cases[i];
-    if (c.status != "pending") continue;
-    if (!redo && fs::exists(c.out + "/report.json")) {
-      c.status = "done";
-      ++doneEarlier;
-      readResults(c, scored);
-    } else {
-      todo.push_back(i);
+/// A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
+/// writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes (not one whose
+/// process still runs, e.g. another batch on the same folder).
+void removeStaleStaging(const fs::path& outAbs, const std::vector<Case>& cases) {
+  std::error_code ec;
+  if (!fs::is_directory(outAbs, ec)) return;
+  for (const auto& e : fs::directory_iterator(outAbs, ec)) {
+    const std::string n = e.path().filename().string();
+    for (const Case& c : cases) {
+      const std::string prefix = "." + c.name + ".partial";
+      if (n.rfind(prefix, 0) != 0) continue;
+      const long pid = std::atol(n.c_str() + prefix.size());  // still being written by a live process: leave it
+      if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) == 0) continue;
+      fs::remove_all(e.path(), ec);
     }
   }
-  say(std::to_string(runnable) + " case(s) in " + casesDir +
-      (doneEarlier ? ", " + std::to_string(doneEarlier) + " done by an earlier run (--redo runs them again)"
-                   : std::string()) +
-      ", " + std::to_string(todo.size()) + " to run, " + std::to_string(jobs) + " at a time");
-  for (const Case& c : cases)
-    if (c.status == "skipped" || c.status == "failed") say(c.name + ": " + c.status + ": " + c.message);
-  writeSummary(outAbs.string(), cases, scored);
+}
 
+/// Records how a case's process ended (and its results if it succeeded); returns the line to report.
+std::string caseEnded(Case& c, int status, const struct rusage& ru, const std::string& exe, bool scored) {
+  c.peakRssMiB = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  if (WIFEXITED(status) && c.exitCode == 0) {
+    c.status = "ok";
+    readResults(c, scored);
+  } else {
+    c.status = "failed";
+    c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +
+                                          (WTERMSIG(status) == SIGKILL ? " (out of memory?)" : "")
+                : c.exitCode == 127 ? "could not run " + exe
+                                    : errorLine(c.log);
+  }
+  std::string line = c.name + " " + c.status + " in " + fixed(c.seconds, 1) + " s, " + fixed(c.peakRssMiB, 0) + " MiB";
+  if (!c.scores.empty()) line += ", Dice mean " + fixed(c.meanDice, 3) + " min " + fixed(c.minDice, 3);
+  if (!c.message.empty()) line += ": " + c.message;
+  if (c.status == "failed") line += " (log " + c.log + ")";
+  return line;
+}
+
+/// Runs the cases `todo`, b.jobs at a time, rewriting the summary as each ends. A usage error in the forwarded
+/// options would fail every case alike: the batch stops starting cases at the first one and throws it.
+void runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector<size_t>& todo) {
+  std::error_code ec;
   const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
   if (ec) throw Error("batch: cannot find the mskseg program itself (/proc/self/exe)");
-  const std::time_t started = std::time(nullptr);
-  const auto t0 = std::chrono::steady_clock::now();
+  const bool scored = !b.referenceName.empty();
   std::map<pid_t, std::pair<size_t, std::chrono::steady_clock::time_point>> running;
   size_t next = 0, finished = 0;
   std::string usageError;
   while (next < todo.size() || !running.empty()) {
-    while (usageError.empty() && next < todo.size() && static_cast<long>(running.size()) < jobs) {
+    while (usageError.empty() && next < todo.size() && static_cast<int>(running.size()) < b.jobs) {
       const size_t i = todo[next++];
-      running[startCase(exe, cases[i], forwarded)] = {i, std::chrono::steady_clock::now()};
+      running[startCase(exe, cases[i], b.forwarded)] = {i, std::chrono::steady_clock::now()};
     }
     if (running.empty()) break;
     int status = 0;
@@ -383,61 +400,86 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     Case& c = cases[it->second.first];
     c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
     running.erase(it);
-    ++finished;
-    c.peakRssMiB = static_cast<double>(ru.ru_maxrss) / 1024.0;
-    c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (WIFEXITED(status) && c.exitCode == 0) {
-      c.status = "ok";
-      readResults(c, scored);
-    } else {
-      c.status = "failed";
-      c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +
-                                            (WTERMSIG(status) == SIGKILL ? " (out of memory?)" : "")
-                  : c.exitCode == 127 ? "could not run " + exe
-                                      : errorLine(c.log);
-      if (c.exitCode == 2 && usageError.empty()) usageError = c.name + ": " + c.message;
-    }
-    std::string line = "[" + std::to_string(finished) + "/" + std::to_string(todo.size()) + "] " + c.name + " " +
-                       c.status + " in " + fixed(c.seconds, 1) + " s, " + fixed(c.peakRssMiB, 0) + " MiB";
-    if (!c.scores.empty()) line += ", Dice mean " + fixed(c.meanDice, 3) + " min " + fixed(c.minDice, 3);
-    if (!c.message.empty()) line += ": " + c.message;
-    if (c.status == "failed") line += " (log " + c.log + ")";
-    say(line);
-    writeSummary(outAbs.string(), cases, scored);
+    const std::string line = caseEnded(c, status, ru, exe, scored);
+    if (c.exitCode == 2 && usageError.empty()) usageError = c.name + ": " + c.message;
+    say("[" + std::to_string(++finished) + "/" + std::to_string(todo.size()) + "] " + line);
+    writeSummary(b.outAbs.string(), cases, scored);
   }
-  // A usage error in the forwarded options would fail every case alike: the batch stops at the first one.
   if (!usageError.empty()) throw UsageError("case " + usageError);
+}
 
-  int ok = 0, failed = 0, skipped = 0;
-  for (const Case& c : cases) {
-    ok += c.status == "ok";
-    failed += c.status == "failed";
-    skipped += c.status == "skipped";
-  }
+/// OUT/batch.json: the command, version, inputs, counts and times.
+void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argvIn, const std::vector<Case>& cases,
+                    int doneEarlier, std::time_t started, double wallSeconds) {
+  Json counts;
+  counts["ok"] = std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "ok"; });
+  counts["failed"] = std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; });
+  counts["done_earlier"] = doneEarlier;
+  counts["skipped_no_image"] =
+      std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "skipped"; });
   Json j;
   j["mskseg_version"] = MSK_VERSION;
   j["command"] = commandLineJson("batch", argvIn);
-  j["cases_folder"] = fs::absolute(casesDir).string();
-  j["scene"] = scene;
-  j["image_name"] = imageName;
-  if (scored) j["reference_name"] = referenceName;
-  Json fw = Json::array();
-  for (const auto& a : forwarded) fw.push(a);
-  j["segment_options"] = fw;
-  j["jobs"] = static_cast<int>(jobs);
+  j["cases_folder"] = fs::absolute(b.casesDir).string();
+  j["scene"] = b.scene;
+  j["image_name"] = b.imageName;
+  if (!b.referenceName.empty()) j["reference_name"] = b.referenceName;
+  j["segment_options"] = b.forwarded;
+  j["jobs"] = b.jobs;
   j["started"] = isoTime(started);
   j["finished"] = isoTime(std::time(nullptr));
-  j["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  Json counts;
-  counts["ok"] = ok;
-  counts["failed"] = failed;
-  counts["done_earlier"] = doneEarlier;
-  counts["skipped_no_image"] = skipped;
+  j["wall_s"] = wallSeconds;
   j["cases"] = counts;
-  j.writeFile(outAbs.string() + "/batch.json");
-  std::cout << "batch: " << ok << " ok, " << failed << " failed, " << doneEarlier << " done earlier, " << skipped
-            << " without " << imageName << " -> " << outAbs.string() << "/summary.csv\n";
-  return failed > 0 ? 1 : 0;
+  writeJsonFile(b.outAbs.string() + "/batch.json", j);
+}
+
+}  // namespace
+
+int cmdBatch(const std::vector<std::string>& argvIn) {
+  BatchSettings b;
+  if (!parseBatch(argvIn, b)) return 0;
+  std::vector<Case> cases;
+  const int runnable = findCases(b, cases);
+  removeStaleStaging(b.outAbs, cases);
+  std::error_code ec;
+  fs::create_directories(b.outAbs / "logs", ec);
+  if (ec) throw IoError((b.outAbs / "logs").string(), "cannot create folder: " + ec.message());
+
+  // Cases done by an earlier run keep their results (and get scored, so the summary covers the whole cohort).
+  const bool scored = !b.referenceName.empty();
+  std::vector<size_t> todo;
+  int doneEarlier = 0;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    Case& c = cases[i];
+    if (c.status != "pending") continue;
+    if (!b.redo && fs::exists(c.out + "/report.json")) {
+      c.status = "done";
+      ++doneEarlier;
+      readResults(c, scored);
+    } else {
+      todo.push_back(i);
+    }
+  }
+  say(std::to_string(runnable) + " case(s) in " + b.casesDir +
+      (doneEarlier ? ", " + std::to_string(doneEarlier) + " done by an earlier run (--redo runs them again)"
+                   : std::string()) +
+      ", " + std::to_string(todo.size()) + " to run, " + std::to_string(b.jobs) + " at a time");
+  for (const Case& c : cases)
+    if (c.status == "skipped" || c.status == "failed") say(c.name + ": " + c.status + ": " + c.message);
+  writeSummary(b.outAbs.string(), cases, scored);
+
+  const std::time_t started = std::time(nullptr);
+  const auto t0 = std::chrono::steady_clock::now();
+  runCases(b, cases, todo);
+  writeBatchJson(b, argvIn, cases, doneEarlier, started,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  const auto count = [&](const char* status) {
+    return std::count_if(cases.begin(), cases.end(), [&](const Case& c) { return c.status == status; });
+  };
+  std::cout << "batch: " << count("ok") << " ok, " << count("failed") << " failed, " << doneEarlier
+            << " done earlier, " << count("skipped") << " without " << b.imageName << " -> " << b.outAbs.string()
+            << "/summary.csv\n";
+  return count("failed") > 0 ? 1 : 0;
 }
 
 }  // namespace msk::cli

@@ -6,10 +6,9 @@
 #include <set>
 #include <sstream>
 
-#include "args.h"
 #include "commands.h"
 #include "msk/core/atomic_file.h"
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
@@ -27,8 +26,9 @@ std::vector<int32_t> parseLabels(const std::string& text) {
   std::stringstream ss(text);
   std::string p;
   while (std::getline(ss, p, ',')) {
-    double v = parseNumber("labels", p);
-    if (v != std::floor(v) || v < 1 || v > 2147483647.0)
+    char* end = nullptr;
+    const double v = std::strtod(p.c_str(), &end);
+    if (p.empty() || end != p.c_str() + p.size() || v != std::floor(v) || v < 1 || v > 2147483647.0)
       throw UsageError("option --labels expects positive integers, got '" + p + "'");
     out.push_back(static_cast<int32_t>(v));
   }
@@ -55,31 +55,32 @@ Json metricsJson(const Row& r) {
 }  // namespace
 
 int cmdEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"result", "reference", "labels", "json", "csv", "voxel"}, {"help"});
-  if (args.has("help")) {
-    std::cout << "usage: mskseg eval --result A --reference B [--labels 1,2,...] [--json FILE] [--csv FILE]\n"
-                 "                   [--voxel MM]\n\n"
-                 "A and B are label maps on the same grid (.nii/.nii.gz; every label of B unless --labels) or two\n"
-                 "closed meshes (.vtk .vtp .stl .obj .ply). Prints Dice, Jaccard, average symmetric surface distance\n"
-                 "(ASSD), HD95 and Hausdorff distance in mm (definitions in README.md). --voxel: grid spacing used for\n"
-                 "mesh overlap (default 0.5 mm). '-' as FILE writes to stdout.\n";
-    return 0;
-  }
-  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
-  const std::string a = args.str("result"), b = args.str("reference");
+  CommandLine app(
+      "eval",
+      "A and B are label maps on the same grid (.nii/.nii.gz; every label of B unless --labels) or two closed meshes "
+      "(.vtk .vtp .stl .obj .ply). Prints Dice, Jaccard, average symmetric surface distance (ASSD), HD95 and "
+      "Hausdorff distance in mm (definitions in docs/measurements.md).");
+  std::string a, b, labelsText, jsonPath, csvPath;
+  double voxel = 0.5;
+  app.add_option("--result", a, "the segmentation (label map or mesh)")->required();
+  app.add_option("--reference", b, "the reference (same kind)")->required();
+  app.add_option("--labels", labelsText, "labels to score, e.g. 1,2,3 (default: every label of the reference)");
+  app.add_option("--json", jsonPath, "write the figures as JSON ('-': stdout)");
+  app.add_option("--csv", csvPath, "write the figures as CSV ('-': stdout)");
+  addNumber(app, "--voxel", voxel, "grid spacing of the mesh overlap, mm, (0.05, 10] (default 0.5)");
+  if (!parseArgs(app, argv)) return 0;
+  if (!(voxel > 0.05 && voxel <= 10)) throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
   std::vector<Row> rows;
   if (isMeshFile(a) != isMeshFile(b)) throw UsageError("--result and --reference must both be meshes or both label maps");
   if (isMeshFile(a)) {
-    const double voxel = args.num("voxel", 0.5);
-    if (!(voxel > 0.05 && voxel <= 10)) throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
     rows.push_back({"mesh", meshMetrics(readMesh(a), readMesh(b), voxel)});
   } else {
     LabelMap la = readNifti<int32_t>(a), lb = readNifti<int32_t>(b);
     if (!la.grid.sameGeometry(lb.grid))
       throw IoError(a, "label map is not on the reference's grid (" + b + "): resample it first");
     std::vector<int32_t> labels;
-    if (args.has("labels")) {
-      labels = parseLabels(args.str("labels"));
+    if (!labelsText.empty()) {
+      labels = parseLabels(labelsText);
     } else {
       std::set<int32_t> s;
       for (int32_t v : lb.data)
@@ -94,31 +95,31 @@ int cmdEval(const std::vector<std::string>& argv) {
   for (const auto& r : rows)
     std::printf("%-8s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", r.name.c_str(), r.m.dice, r.m.jaccard, r.m.assd,
                 r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
-  if (args.has("json")) {
+  if (!jsonPath.empty()) {
     Json j;
     j["result"] = a;
     j["reference"] = b;
     j["mskseg_version"] = MSK_VERSION;
     Json list = Json::array();
-    for (const auto& r : rows) list.push(metricsJson(r));
+    for (const auto& r : rows) list.push_back(metricsJson(r));
     j["metrics"] = list;
-    if (args.str("json") == "-") std::cout << j.dump(2) << "\n";
-    else j.writeFile(args.str("json"));
+    if (jsonPath == "-") std::cout << dumpJson(j, 2) << "\n";
+    else writeJsonFile(jsonPath, j);
   }
-  if (args.has("csv")) {
+  if (!csvPath.empty()) {
     std::ostringstream c;
     c << "object,dice,jaccard,assd_mm,hd95_mm,hausdorff_mm,volume_result_mm3,volume_reference_mm3\n";
     c.precision(8);
     for (const auto& r : rows)
       c << r.name << "," << r.m.dice << "," << r.m.jaccard << "," << r.m.assd << "," << r.m.hd95 << ","
         << r.m.hausdorff << "," << r.m.volumeA << "," << r.m.volumeB << "\n";
-    if (args.str("csv") == "-") {
+    if (csvPath == "-") {
       std::cout << c.str();
     } else {
-      writeAtomically(args.str("csv"), [&](const std::string& tmp) {
+      writeAtomically(csvPath, [&](const std::string& tmp) {
         std::ofstream f(tmp);
         f << c.str();
-        if (!f) throw IoError(args.str("csv"), "write failed");
+        if (!f) throw IoError(csvPath, "write failed");
       });
     }
   }

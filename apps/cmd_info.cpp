@@ -6,9 +6,8 @@
 #include <map>
 #include <sstream>
 
-#include "args.h"
 #include "commands.h"
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 
@@ -19,15 +18,15 @@ Json matrixJson(const Eigen::MatrixXd& m) {
   Json rows = Json::array();
   for (int r = 0; r < m.rows(); ++r) {
     Json row = Json::array();
-    for (int c = 0; c < m.cols(); ++c) row.push(m(r, c));
-    rows.push(row);
+    for (int c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    rows.push_back(row);
   }
   return rows;
 }
 
 Json vecJson(const Eigen::VectorXd& v) {
   Json a = Json::array();
-  for (int i = 0; i < v.size(); ++i) a.push(v[i]);
+  for (int i = 0; i < v.size(); ++i) a.push_back(v[i]);
   return a;
 }
 
@@ -93,7 +92,7 @@ int infoVolume(const std::string& path, bool json, bool labels) {
     j["file"] = path;
     j["kind"] = "volume";
     j["nifti_version"] = info.version;
-    j["dims"] = vecJson(g.dims.cast<double>());
+    j["dims"] = Json::array({g.dims[0], g.dims[1], g.dims[2]});
     j["spacing_mm"] = vecJson(g.spacing);
     j["origin_ras_mm"] = vecJson(g.origin);
     j["direction"] = matrixJson(g.direction);
@@ -107,22 +106,22 @@ int infoVolume(const std::string& path, bool json, bool labels) {
     j["scl_inter"] = info.sclInter;
     j["min"] = info.minValue;
     j["max"] = info.maxValue;
-    j["nonfinite_count"] = static_cast<double>(info.nonFiniteCount);
+    j["nonfinite_count"] = info.nonFiniteCount;
     if (labels) {
       Json list = Json::array();
       for (const auto& [label, st] : labelStats(vol, path)) {
         Json l;
-        l["label"] = static_cast<double>(label);
-        l["voxels"] = static_cast<double>(st.voxels);
+        l["label"] = label;
+        l["voxels"] = st.voxels;
         l["volume_ml"] = st.voxels * voxelMl;
         l["centroid_ras_mm"] = vecJson(st.sum / static_cast<double>(st.voxels));
         l["bounds_ras_min"] = vecJson(st.lo);
         l["bounds_ras_max"] = vecJson(st.hi);
-        list.push(l);
+        list.push_back(l);
       }
       j["labels"] = list;
     }
-    std::cout << j.dump(2) << "\n";
+    std::cout << dumpJson(j, 2) << "\n";
     return 0;
   }
   std::ostringstream o;
@@ -180,9 +179,9 @@ int infoMesh(const std::string& path, bool json) {
     j["bounds_ras_min"] = vecJson(lo);
     j["bounds_ras_max"] = vecJson(hi);
     Json arrays = Json::array();
-    for (const auto& kv : m.pointData) arrays.push(kv.first);
+    for (const auto& kv : m.pointData) arrays.push_back(kv.first);
     j["point_arrays"] = arrays;
-    std::cout << j.dump(2) << "\n";
+    std::cout << dumpJson(j, 2) << "\n";
     return 0;
   }
   std::cout << "file          " << path << "\n"
@@ -203,24 +202,24 @@ int infoMesh(const std::string& path, bool json) {
 }  // namespace
 
 int cmdInfo(const std::vector<std::string>& argv) {
-  Args args(argv, {}, {"help", "json", "labels"});
-  if (args.has("help")) {
-    std::cout
-        << "usage: mskseg info FILE [--json] [--labels]\n\n"
-           "FILE is a NIfTI volume (.nii, .nii.gz): prints dims, spacing, the voxel->RAS affine and which header\n"
-           "form it came from (sform, qform or pixdim), datatype and scaling, value range and NaN/Inf count;\n"
-           "or a mesh (.vtk .vtp .stl .obj .ply): vertices, faces, volume, area, bounds and the file's space.\n"
-           "--labels (a label map): each non-zero label's voxel count, volume, centroid and bounds (RAS mm),\n"
-           "e.g. to find the labels to put in a scene, or a midline landmark for --mirror-x.\n";
-    return 0;
-  }
-  if (args.positional().size() != 1) throw UsageError("expected exactly one FILE");
-  const std::string& path = args.positional()[0];
+  CommandLine app(
+      "info",
+      "FILE is a NIfTI volume (.nii, .nii.gz): prints dims, spacing, the voxel->RAS affine and which header form it "
+      "came from (sform, qform or pixdim), datatype and scaling, value range and NaN/Inf count; or a mesh (.vtk .vtp "
+      ".stl .obj .ply): vertices, faces, volume, area, bounds and the file's space.");
+  std::string path;
+  bool json = false, labels = false;
+  app.add_option("file", path, "the volume or mesh")->required();
+  app.add_flag("--json", json, "print JSON");
+  app.add_flag("--labels", labels,
+               "a label map: each non-zero label's voxel count, volume, centroid and bounds (RAS mm), e.g. to find "
+               "the labels to put in a scene, or a midline landmark for --mirror-x");
+  if (!parseArgs(app, argv)) return 0;
   if (isMeshFile(path)) {
-    if (args.has("labels")) throw UsageError("--labels is for a label map, not a mesh");
-    return infoMesh(path, args.has("json"));
+    if (labels) throw UsageError("--labels is for a label map, not a mesh");
+    return infoMesh(path, json);
   }
-  return infoVolume(path, args.has("json"), args.has("labels"));
+  return infoVolume(path, json, labels);
 }
 
 }  // namespace msk::cli

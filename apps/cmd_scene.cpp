@@ -5,14 +5,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <sstream>
 
-#include "args.h"
 #include "commands.h"
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/scene.h"
 #include "msk/segmentation/template_builder.h"
 
 namespace msk::cli {
@@ -79,45 +80,52 @@ std::string fixed2(double v) {
 }  // namespace
 
 int cmdScene(const std::vector<std::string>& argv) {
-  Args args(argv, {"labels", "objects", "out", "mirror-x", "midline-label", "vertices", "smooth", "collisions"},
-            {"help", "refine-bones"});
-  if (args.has("help")) {
-    std::cout
-        << "usage: mskseg scene --labels SEG.nii.gz --objects SPEC --out DIR [--mirror-x MM | --midline-label L]\n"
-           "                    [--vertices 3000] [--smooth MM] [--collisions auto|all|none] [--refine-bones]\n\n"
-           "Writes a scene ready for `mskseg segment`/`batch`: DIR/templates/<name>.vtk (LPS), one smooth template\n"
-           "per object built from a label of SEG as `mskseg template` builds it, and DIR/scene.json naming them.\n"
-           "  --objects SPEC   comma-separated NAME:LABEL[:FROM][:KIND]: LABEL is the object's label in the results\n"
-           "                   (and in a reference to score against), FROM the label its template is built from\n"
-           "                   (default LABEL), KIND bone, muscle or generic (default generic), e.g.\n"
-           "                   femur_right:76:75:bone,gluteus_medius_right:83:82:muscle\n"
-           "  --mirror-x MM    mirror every template across the sagittal plane x = MM (RAS mm): templates of one\n"
-           "                   side from the other side's labels. Each object then uses the profile force with its\n"
-           "                   intensity profiles learned on the structure it came from (\"profiles_from\")\n"
-           "  --midline-label L   the same, across x = the centroid of label L (e.g. the sacrum)\n"
-           "  --collisions     auto: pairs whose templates come within 2 mm (default); all: every pair; none\n"
-           "  --refine-bones   bones take the refinement pass (\"refine\": true; for CT, see README)\n"
-           "  --vertices, --smooth   as for `mskseg template`\n"
-           "The folder appears whole or not at all.\n";
-    return 0;
-  }
-  if (!args.positional().empty()) throw UsageError("unexpected argument '" + args.positional()[0] + "'");
-  const std::string labelsPath = args.str("labels"), out = args.str("out");
-  const std::vector<ObjectSpec> objects = parseObjects(args.str("objects"));
-  if (args.has("mirror-x") && args.has("midline-label"))
-    throw UsageError("give --mirror-x or --midline-label, not both");
-  const TemplateOptions topts = templateOptionsFrom(args);
-  const std::string collisions = args.str("collisions", "auto");
+  CommandLine app(
+      "scene",
+      "Writes a scene ready for `mskseg segment`/`batch`: OUT/templates/<name>.vtk (LPS), one smooth template per "
+      "object built from a label of SEG as `mskseg template` builds it, and OUT/scene.json naming them. The folder "
+      "appears whole or not at all.");
+  std::string labelsPath, out, objectsText, collisions = "auto";
+  std::optional<double> mirrorX;
+  std::optional<long> midlineLabel;
+  bool refineBones = false;
+  TemplateOptions topts;
+  app.add_option("--labels", labelsPath, "label map (NIfTI)")->required();
+  app.add_option("--objects", objectsText,
+                 "comma-separated NAME:LABEL[:FROM][:KIND]: LABEL is the object's label in the results (and in a "
+                 "reference to score against), FROM the label its template is built from (default LABEL), KIND bone, "
+                 "muscle or generic (default generic), e.g. femur_right:76:75:bone,gluteus_medius_right:83:82:muscle")
+      ->required();
+  app.add_option("--out", out, "output folder")->required();
+  auto* mirrorOption = app.add_option_function<double>(
+                              "--mirror-x", [&mirrorX](double x) { mirrorX = x; },
+                              "mirror every template across the sagittal plane x = MM (RAS mm): templates of one side "
+                              "from the other side's labels; each object then uses the profile force with its "
+                              "intensity profiles learned on the structure it came from (\"profiles_from\")")
+                           ->type_name("MM");
+  app.add_option_function<long>(
+         "--midline-label", [&midlineLabel](long l) { midlineLabel = l; },
+         "the same, across x = the centroid of label L (e.g. the sacrum)")
+      ->type_name("L")
+      ->excludes(mirrorOption);
+  app.add_option("--collisions", collisions,
+                 "auto: pairs whose templates come within 2 mm (default); all: every pair; none");
+  app.add_flag("--refine-bones", refineBones, "bones take the refinement pass (\"refine\": true; for CT)");
+  addTemplateOptions(app, topts);
+  if (!parseArgs(app, argv)) return 0;
+  const std::vector<ObjectSpec> objects = parseObjects(objectsText);
+  checkTemplateOptions(topts);
   if (collisions != "auto" && collisions != "all" && collisions != "none")
     throw ParameterError("--collisions", collisions, "must be auto, all or none");
+  if (mirrorX && !std::isfinite(*mirrorX)) throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
   checkOutputFolder(out);
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);
   for (const ObjectSpec& o : objects) requireLabel(labels, o.from, labelsPath);
-  const bool mirror = args.has("mirror-x") || args.has("midline-label");
-  double midX = args.num("mirror-x", 0.0);
-  if (args.has("midline-label")) {
-    const long m = args.integer("midline-label", 0);
+  const bool mirror = mirrorX || midlineLabel;
+  double midX = mirrorX.value_or(0.0);
+  if (midlineLabel) {
+    const long m = *midlineLabel;
     requireLabel(labels, m, labelsPath);
     double sum = 0;
     long n = 0;
@@ -134,43 +142,42 @@ int cmdScene(const std::vector<std::string>& argv) {
 
   writeFolderAtomically(out, [&](const std::string& dir) {
     std::filesystem::create_directories(dir + "/templates");
-    Json scene;
-    Json list = Json::array();
+    Scene scene;
     for (const ObjectSpec& o : objects) {
       TemplateReport report;
       TriangleMesh mesh = templateFromLabels(labels, static_cast<int>(o.from), topts, &report);
       if (mirror) mesh = mirrorMesh(mesh, Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
-      writeMesh(dir + "/templates/" + o.name + ".vtk", mesh, MeshSpace::LPS);
-      Json j;
-      j["name"] = o.name;
-      j["label"] = static_cast<double>(o.label);
-      j["kind"] = o.kind;
-      j["template"] = "templates/" + o.name + ".vtk";
+      SceneObject so;
+      so.name = o.name;
+      so.label = static_cast<int>(o.label);
+      so.kind = o.kind == "bone" ? ObjectKind::Bone : o.kind == "muscle" ? ObjectKind::Muscle : ObjectKind::Generic;
+      so.model = defaultModel(so.kind);
+      so.templatePath = dir + "/templates/" + o.name + ".vtk";
+      writeMesh(so.templatePath, mesh, MeshSpace::LPS);
       if (mirror) {
-        j["force"] = "profile";
-        Json from;
-        from["mirror_x"] = midX;
-        j["profiles_from"] = from;
+        so.hasForce = true;
+        so.force = so.model.imageForce = TargetMode::Profile;
+        Eigen::Matrix4d source = Eigen::Matrix4d::Identity();
+        source(0, 0) = -1;
+        source(0, 3) = 2 * midX;
+        so.profileSource = source;
       }
-      if (args.has("refine-bones") && o.kind == "bone") {
-        Json model;
-        model["refine"] = true;
-        j["model"] = model;
-      }
-      list.push(j);
+      if (refineBones && so.kind == ObjectKind::Bone) so.model.refine = true;
+      scene.objects.push_back(std::move(so));
       std::cout << o.name << " (label " << o.label << "): template from label " << o.from << ", " << mesh.vertexCount()
                 << " vertices, " << enclosedVolume(mesh) / 1000.0 << " mL" << (mirror ? ", mirrored" : "") << "\n";
     }
-    scene["objects"] = list;
-    if (collisions == "auto") {
-      scene["collisions"] = "auto";
-    } else if (collisions == "all") {
-      Json pairs = Json::array();
+    if (collisions == "auto") scene.autoCollisions = AutoCollisions{};
+    if (collisions == "all")
       for (size_t a = 0; a < objects.size(); ++a)
-        for (size_t b = a + 1; b < objects.size(); ++b) pairs.push(Json(Json::Array{objects[a].name, objects[b].name}));
-      scene["collisions"] = pairs;
-    }
-    scene.writeFile(dir + "/scene.json");
+        for (size_t b = a + 1; b < objects.size(); ++b)
+          scene.collisions.push_back(CollisionPair{static_cast<int>(a), static_cast<int>(b)});
+    Json provenance = Json::object();
+    provenance["generator"] = "mskseg scene";
+    provenance["command"] = commandLineJson("scene", argv);
+    provenance["labels"] = std::filesystem::absolute(labelsPath).string();
+    scene.provenance = provenance;
+    writeScene(scene, dir + "/scene.json");
   });
   if (mirror) std::cout << "templates mirrored across x = " << fixed2(midX) << " mm (RAS)\n";
   std::cout << "scene: " << out << "/scene.json (" << objects.size() << " objects, collisions " << collisions << ")\n";

@@ -1,16 +1,16 @@
 #pragma once
 // The subcommands: each takes its arguments (after the command name) and returns the exit code.
 #include <functional>
-#include <set>
 #include <string>
 #include <vector>
 
-#include "args.h"
-#include "msk/core/json.h"
+#include "cli.h"
 #include "msk/core/log.h"
+#include "msk/imaging/json.h"
+#include "msk/imaging/mesh_io.h"
 #include "msk/imaging/volume.h"
+#include "msk/segmentation/segment_options.h"
 #include "msk/segmentation/template_builder.h"
-#include "msk/segmentation/segmenter.h"
 
 namespace msk::cli {
 /// mskseg info FILE: a NIfTI volume's geometry and values, or a mesh file's summary.
@@ -25,26 +25,28 @@ int cmdRasterize(const std::vector<std::string>& args);
 int cmdConvert(const std::vector<std::string>& args);
 /// mskseg template: smooth closed template surface from one label of a label map.
 int cmdTemplate(const std::vector<std::string>& args);
-
 /// mskseg scene: a scene (scene.json and templates) from the labels of a label map, mirrored if asked.
 int cmdScene(const std::vector<std::string>& args);
-/// The template options (--vertices, --smooth) of a `template` or `scene` command line; ParameterError if bad.
-TemplateOptions templateOptionsFrom(const Args& args);
-/// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
-void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
-
 /// mskseg segment: evolve a scene's templates into an image.
-/// The options of `mskseg segment` that take a value, and those that do not (the batch checks its forwarded ones).
-const std::set<std::string>& segmentValuedOptions();
-/// See segmentValuedOptions().
-const std::set<std::string>& segmentFlags();
-/// The segmentation settings of a `mskseg segment` command line; throws ParameterError or UsageError for a bad one.
-SegmentOptions segmentOptionsFrom(const Args& args);
 int cmdSegment(const std::vector<std::string>& args);
 /// mskseg batch: one scene segmented in every case of a cohort folder, each case in a process of its own.
 int cmdBatch(const std::vector<std::string>& args);
-/// mskseg bench: benchmarks printing figures, one subcommand each (bench scene: multi-structure phantom scene).
+/// mskseg bench: benchmarks printing figures, one subcommand each.
 int cmdBench(const std::vector<std::string>& args);
+
+/// How `mskseg segment` writes its results besides the segmentation options.
+struct SegmentOutputs {
+  MeshSpace space = MeshSpace::LPS;  ///< space of the mesh files (tagged)
+  bool qcPictures = true;            ///< write qc/<name>_{axial,coronal,sagittal}.png
+};
+/// Binds the options of `mskseg segment` that steer the segmentation (all but --image, --scene and --out) into
+/// `opts` and `outputs`; their ranges are checked by checkSegmentOptions() after parsing.
+void addSegmentOptions(CLI::App& app, SegmentOptions& opts, SegmentOutputs& outputs);
+
+/// Binds the template options (--vertices, --smooth) of `template` and `scene` into `opts`.
+void addTemplateOptions(CLI::App& app, TemplateOptions& opts);
+/// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
+void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
 
 /// The command line as a JSON array ["mskseg", command, args...], for the results it produced.
 Json commandLineJson(const std::string& command, const std::vector<std::string>& args);

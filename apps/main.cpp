@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "args.h"
+#include "cli.h"
 #include "commands.h"
 #include "msk/core/error.h"
 #include "msk/core/log.h"

@@ -16,9 +16,9 @@ namespace msk::cli {
 
 Json commandLineJson(const std::string& command, const std::vector<std::string>& args) {
   Json cmd = Json::array();
-  cmd.push("mskseg");
-  cmd.push(command);
-  for (const auto& a : args) cmd.push(a);
+  cmd.push_back("mskseg");
+  cmd.push_back(command);
+  for (const auto& a : args) cmd.push_back(a);
   return cmd;
 }
 

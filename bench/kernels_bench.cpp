@@ -15,13 +15,18 @@
 #include <utility>
 
 #include "msk/core/collision_surface.h"
-#include "msk/core/constraints.h"
+#include "msk/core/collision_constraint.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/simplex_internal_constraint.h"
+#include "msk/core/target_constraint.h"
 #include "msk/core/medial_axis.h"
 #include "msk/core/simplex_batch.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/core/constraint_set.h"
+#include "msk/core/transform_fit.h"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <string>
 
-#include "msk/core/constraints.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/image_forces.h"
@@ -59,7 +59,7 @@ void BM_FemurSegmentation(benchmark::State& state) {
   scene.objects.resize(1);  // femur only
   scene.collisions.clear();
   msk::SegmentOptions opts;
-  opts.quality = static_cast<msk::Quality>(state.range(0));
+  opts.evolution.quality = static_cast<msk::Quality>(state.range(0));
   msk::SegmentationResult res;
   for (auto _ : state) res = msk::segmentScene(img, scene, opts);
   const msk::ObjectResult& o = res.objects[0];
@@ -75,7 +75,7 @@ void BM_FemurSegmentation(benchmark::State& state) {
   state.counters["us_per_step_vertex"] = 1e6 * (res.secondsPerStage["evolution"]) / std::max(1, stepVertices);
   state.counters["dice"] = m.dice;
   state.counters["assd_mm"] = m.assd;
-  state.SetLabel(msk::qualityName(opts.quality));
+  state.SetLabel(msk::qualityName(opts.evolution.quality));
 }
 BENCHMARK(BM_FemurSegmentation)->DenseRange(0, 2)->Unit(benchmark::kSecond)->Iterations(1);
 

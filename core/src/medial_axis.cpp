@@ -200,22 +200,39 @@ Eigen::VectorXd axisInverseMass(const RadialAttachment& att, int na, const Eigen
 
 // ------------------------------------------------------------------------------------------------ kernel
 
-bool radialCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], const double weights[2], double radius,
-                      double w, const double wq[2], double gamma, Eigen::Vector3d& dp, Eigen::Vector3d dq[2]) {
-  if (!(gamma >= 0.0 && gamma <= 1.0)) return false;
+bool radialRow(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], const double weights[2], double radius,
+               double gamma, ConstraintRow& row) {
   if (!(radius >= 0) || !std::isfinite(radius)) return false;
   if (!std::isfinite(weights[0]) || !std::isfinite(weights[1])) return false;
   const Vec3 pc = weights[0] * q[0] + weights[1] * q[1] - p;  // Q̄ − P
   if (!pc.allFinite()) return false;
   const double len = pc.norm();
   if (!(len > 1e-9)) return false;
-  const Vec3 c = (radius / len) * pc - pc;  // C = G − (Q̄ − P), along Q̄ − P
-  const double denom = w + weights[0] * weights[0] * wq[0] + weights[1] * weights[1] * wq[1];
-  if (!(denom > 0) || !std::isfinite(denom)) return false;
-  const double mbar = gamma / denom;
-  dp = (-w * mbar) * c;
-  dq[0] = (wq[0] * weights[0] * mbar) * c;
-  dq[1] = (wq[1] * weights[1] * mbar) * c;
+  row.count = 3;
+  row.c = (radius / len) * pc - pc;  // C = G − (Q̄ − P), along Q̄ − P
+  row.gamma = gamma;
+  row.direction = false;
+  row.compliant = true;
+  row.index[0] = 0;
+  row.grad[0] = row.react[0] = 1.0;
+  for (int j = 0; j < 2; ++j) {
+    row.index[j + 1] = j + 1;
+    row.grad[j + 1] = row.react[j + 1] = -weights[j];
+  }
+  return true;
+}
+
+bool radialCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], const double weights[2], double radius,
+                      double w, const double wq[2], double gamma, Eigen::Vector3d& dp, Eigen::Vector3d dq[2]) {
+  if (!(gamma >= 0.0 && gamma <= 1.0)) return false;
+  ConstraintRow row;
+  if (!radialRow(p, q, weights, radius, gamma, row)) return false;
+  const double wj[3] = {w, wq[0], wq[1]};
+  Vec3 d[3];
+  if (!pbdCorrections(row, wj, d)) return false;
+  dp = d[0];
+  dq[0] = d[1];
+  dq[1] = d[2];
   return true;
 }
 
@@ -247,55 +264,25 @@ int RadialConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
   return index[1] == index[2] ? 2 : 3;
 }
 
-bool RadialConstraints::row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
-  (void)w;
-  // The residual of radialCorrection(): C = r̃ (Q̄ − P)/|Q̄ − P| − (Q̄ − P), with the goal direction held constant.
-  const int iv = first_ + r, a = firstAxis_ + att_.axisIndex(r, 0), b = firstAxis_ + att_.axisIndex(r, 1);
-  const double c0 = att_.weights(r, 0), c1 = att_.weights(r, 1), radius = att_.radius[r];
-  if (!(radius >= 0) || !std::isfinite(radius) || !std::isfinite(c0) || !std::isfinite(c1)) return false;
-  const Vec3 pc = c0 * p.row(a).transpose() + c1 * p.row(b).transpose() - p.row(iv).transpose();
-  if (!pc.allFinite()) return false;
-  const double len = pc.norm();
-  if (!(len > 1e-9)) return false;
-  out.c = (radius / len) * pc - pc;
-  out.gamma = gamma_;
-  out.direction = false;
-  out.index[0] = iv;
-  out.grad[0] = out.react[0] = 1.0;
-  if (a == b) {  // both weights on one axis vertex
-    out.count = 2;
-    out.index[1] = a;
-    out.grad[1] = out.react[1] = -(c0 + c1);
-  } else {
-    out.count = 3;
-    out.index[1] = a;
-    out.index[2] = b;
-    out.grad[1] = out.react[1] = -c0;
-    out.grad[2] = out.react[2] = -c1;
-  }
-  return true;
+void RadialConstraints::beginRows(const Points& p, const Eigen::VectorXd& w) {
+  MSK_ASSERT(w.size() == p.rows() && p.rows() >= first_ + att_.vertexCount() && p.rows() >= firstAxis_ + axisCount_,
+             "radial constraints: size mismatch");
 }
 
-void RadialConstraints::project(Points& p, const Eigen::VectorXd& w) {
-  const int n = att_.vertexCount();
-  skipped_ = 0;
-  if (n == 0) return;
-  MSK_ASSERT(w.size() == p.rows() && p.rows() >= first_ + n && p.rows() >= firstAxis_ + axisCount_,
-             "radial constraints: size mismatch");
-  for (int v = 0; v < n; ++v) {
-    const int iv = first_ + v, a = firstAxis_ + att_.axisIndex(v, 0), b = firstAxis_ + att_.axisIndex(v, 1);
-    const Vec3 q[2] = {p.row(a).transpose(), p.row(b).transpose()};
-    const double c[2] = {att_.weights(v, 0), att_.weights(v, 1)};
-    const double wq[2] = {w[a], w[b]};
-    Vec3 dp, dq[2];
-    if (!radialCorrection(p.row(iv).transpose(), q, c, att_.radius[v], w[iv], wq, gamma_, dp, dq)) {
-      ++skipped_;
-      continue;
-    }
-    p.row(iv) += dp.transpose();
-    p.row(a) += dq[0].transpose();
-    p.row(b) += dq[1].transpose();
+bool RadialConstraints::row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
+  (void)w;
+  const int iv = first_ + r, a = firstAxis_ + att_.axisIndex(r, 0), b = firstAxis_ + att_.axisIndex(r, 1);
+  const Vec3 q[2] = {p.row(a).transpose(), p.row(b).transpose()};
+  const double c[2] = {att_.weights(r, 0), att_.weights(r, 1)};
+  if (!radialRow(p.row(iv).transpose(), q, c, att_.radius[r], gamma_, out)) return false;
+  out.index[0] = iv;
+  out.index[1] = a;
+  out.index[2] = b;
+  if (a == b) {  // both weights on one axis vertex
+    out.count = 2;
+    out.grad[1] = out.react[1] = -(c[0] + c[1]);
   }
+  return true;
 }
 
 void recenterAxis(const Points& surface, Points& axis, const RadialAttachment& att, double gamma,

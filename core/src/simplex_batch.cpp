@@ -26,13 +26,15 @@
 #include <sys/mman.h>
 #endif
 
-#include "msk/core/constraints.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
 
 namespace msk {
 
 namespace {
+
+using namespace simplex_internal;
 
 #if defined(__GNUC__) || defined(__clang__)
 #define MSK_BATCH_INLINE inline __attribute__((always_inline))

@@ -12,6 +12,8 @@
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
+#include "msk/core/simplex_batch.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "rigid_motion_damping.h"
 #include "worker_pool.h"
 
@@ -42,16 +44,6 @@ Scheme parseScheme(const std::string& name) {
   if (name == "colored-gauss-seidel") return Scheme::ColouredGaussSeidel;
   throw ParameterError("scheme", name,
                        "must be gauss-seidel, coloured-gauss-seidel, jacobi, xpbd, explicit or implicit");
-}
-
-SolverOptions SolverOptions::fromPbd(const PbdOptions& pbd) {
-  SolverOptions o;
-  o.scheme = Scheme::GaussSeidel;
-  o.dt = pbd.dt;
-  o.iterations = pbd.iterations;
-  o.damping = pbd.damping;
-  o.drag = pbd.drag;
-  return o;
 }
 
 void validateSolverOptions(const SolverOptions& o) {
@@ -92,13 +84,6 @@ struct SetCache {
   std::uint64_t sharesLayout = 0;                  ///< ... at this row layout
   bool equalShares = false;
 };
-
-/// Σ gj rj wj: the generalised inverse mass of a row.
-double rowInverseMass(const ConstraintRow& r, const Eigen::VectorXd& w) {
-  double W = 0;
-  for (int j = 0; j < r.count; ++j) W += r.grad[j] * r.react[j] * w[r.index[j]];
-  return W;
-}
 
 }  // namespace
 
@@ -226,22 +211,21 @@ struct Solver::Impl {
     forRows(c, [&](int r) {
       ConstraintRow row;
       if (!s.row(r, p, w, row)) return;
+      if (xpbdStep <= 0) {
+        applyPbdRow(row, w, p);
+        return;
+      }
       const double W = rowInverseMass(row, w);
       if (!(W > 0) || !std::isfinite(W)) return;
-      Eigen::Vector3d dl;
-      if (xpbdStep <= 0) {
-        dl = (-row.gamma / W) * row.c;
-      } else {
-        // XPBD (Macklin et al. 2016, eq. 18): Δλ = (−C − α̃ λ) / (W + α̃), α̃ = 1 / (k γ h²).
-        double kr = k * row.gamma;  // row stiffness
-        if (opts.xpbdStiffness == XpbdStiffness::MassRelative) kr /= W * opts.dt * opts.dt;  // k α, α = γ m̄ dt⁻²
-        if (!(kr > 0)) return;
-        const double alphaT = std::isinf(kr) ? 0.0 : 1.0 / (kr * xpbdStep * xpbdStep);
-        if (!std::isfinite(alphaT)) return;
-        Eigen::Vector3d& lam = c.lambda[static_cast<size_t>(r)];
-        dl = (-row.c - alphaT * lam) / (W + alphaT);
-        lam += dl;
-      }
+      // XPBD (Macklin et al. 2016, eq. 18): Δλ = (−C − α̃ λ) / (W + α̃), α̃ = 1 / (k γ h²); a hard row has α̃ = 0.
+      double kr = row.compliant ? k * row.gamma : std::numeric_limits<double>::infinity();  // row stiffness
+      if (row.compliant && opts.xpbdStiffness == XpbdStiffness::MassRelative) kr /= W * opts.dt * opts.dt;
+      if (!(kr > 0)) return;
+      const double alphaT = std::isinf(kr) ? 0.0 : 1.0 / (kr * xpbdStep * xpbdStep);
+      if (!std::isfinite(alphaT)) return;
+      Eigen::Vector3d& lam = c.lambda[static_cast<size_t>(r)];
+      const Eigen::Vector3d dl = (-row.c - alphaT * lam) / (W + alphaT);
+      lam += dl;
       if (dl.allFinite()) applyRow(row, dl, 1.0, p);
     });
   }

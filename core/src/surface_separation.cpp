@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "msk/core/collision_surface.h"
-#include "msk/core/constraints.h"
+
 #include "msk/core/error.h"
 #include "msk/core/winding_number.h"
 #include "worker_pool.h"

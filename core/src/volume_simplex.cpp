@@ -424,19 +424,33 @@ double volumeSimplexVolume(const VolumeSimplexMesh& vm, const Points& p) {
 
 // ------------------------------------------------------------------------------------------------ constraint
 
-bool volumeSimplexCorrection(const Vec3& p, const Vec3 pi[4], double w, const double wi[4], const double eps[4],
-                             double gamma, Vec3& dp, Vec3 dpi[4]) {
+bool volumeSimplexRow(const Vec3& p, const Vec3 pi[4], const double eps[4], double gamma, ConstraintRow& row) {
   const double sumEps = eps[0] + eps[1] + eps[2] + eps[3];
   if (!(std::fabs(sumEps - 1.0) < 1e-9)) return false;  // momentum is conserved only for affine weights
-  Vec3 c = -p;
-  for (int i = 0; i < 4; ++i) c += eps[i] * pi[i];
-  if (!c.allFinite()) return false;
-  const double denom =
-      w + eps[0] * eps[0] * wi[0] + eps[1] * eps[1] * wi[1] + eps[2] * eps[2] * wi[2] + eps[3] * eps[3] * wi[3];
-  if (!(denom > 0) || !std::isfinite(denom)) return false;
-  const double mbar = gamma / denom;  // γ m̄; α dt² = γ m̄
-  dp = (w * mbar) * c;
-  for (int i = 0; i < 4; ++i) dpi[i] = (-wi[i] * eps[i] * mbar) * c;
+  row.count = 5;
+  row.c = -p;
+  row.index[0] = 0;
+  row.grad[0] = row.react[0] = -1.0;
+  for (int i = 0; i < 4; ++i) {
+    row.index[i + 1] = i + 1;
+    row.grad[i + 1] = row.react[i + 1] = eps[i];
+    row.c += eps[i] * pi[i];
+  }
+  row.gamma = gamma;
+  row.direction = false;
+  row.compliant = true;
+  return row.c.allFinite();
+}
+
+bool volumeSimplexCorrection(const Vec3& p, const Vec3 pi[4], double w, const double wi[4], const double eps[4],
+                             double gamma, Vec3& dp, Vec3 dpi[4]) {
+  ConstraintRow row;
+  if (!volumeSimplexRow(p, pi, eps, gamma, row)) return false;
+  const double wj[5] = {w, wi[0], wi[1], wi[2], wi[3]};
+  Vec3 d[5];
+  if (!pbdCorrections(row, wj, d)) return false;
+  dp = d[0];
+  for (int i = 0; i < 4; ++i) dpi[i] = d[i + 1];
   return true;
 }
 
@@ -447,62 +461,35 @@ VolumeSimplexConstraints::VolumeSimplexConstraints(const VolumeSimplexMesh& mode
   MSK_ASSERT(
       model.simplex.k == 3 && nb_.cols() == 4 && eps_.rows() == nb_.rows() && model.degenerate.size() == nb_.rows(),
       "3-simplex volume model expected");
-  const int n = static_cast<int>(nb_.rows());
-  active_.resize(n);
-  for (int v = 0; v < n; ++v) {
+  for (int v = 0; v < static_cast<int>(nb_.rows()); ++v) {
     const bool ghost = v >= model.tetCount();
-    active_[v] = model.degenerate[v] != 2 && (!ghost || boundary == VolumeBoundary::Constrained) ? 1 : 0;
-  }
-}
-
-void VolumeSimplexConstraints::project(Points& pAll, const Eigen::VectorXd& wAll) {
-  const int n = static_cast<int>(nb_.rows());
-  MSK_ASSERT(pAll.rows() >= first_ + n && wAll.size() == pAll.rows(), "volume-simplex constraints: size mismatch");
-  auto p = pAll.middleRows(first_, n);
-  const auto w = wAll.segment(first_, n);
-  skipped_ = 0;
-  for (int v = 0; v < n; ++v) {
-    if (!active_[v]) continue;
-    Vec3 pi[4];
-    double wi[4], eps[4];
-    for (int i = 0; i < 4; ++i) {
-      pi[i] = p.row(nb_(v, i)).transpose();
-      wi[i] = w[nb_(v, i)];
-      eps[i] = eps_(v, i);
-    }
-    Vec3 dp, dpi[4];
-    if (!volumeSimplexCorrection(p.row(v).transpose(), pi, w[v], wi, eps, gamma_, dp, dpi)) {
-      ++skipped_;
-      continue;
-    }
-    p.row(v) += dp.transpose();
-    for (int i = 0; i < 4; ++i) p.row(nb_(v, i)) += dpi[i].transpose();
+    if (model.degenerate[v] != 2 && (!ghost || boundary == VolumeBoundary::Constrained)) rows_.push_back(v);
   }
 }
 
 int VolumeSimplexConstraints::rowParticles(int r, int index[kMaxRowParticles]) const {
-  index[0] = first_ + r;
-  for (int i = 0; i < 4; ++i) index[i + 1] = first_ + nb_(r, i);
+  const int v = rows_[static_cast<size_t>(r)];
+  index[0] = first_ + v;
+  for (int i = 0; i < 4; ++i) index[i + 1] = first_ + nb_(v, i);
   return 5;
+}
+
+void VolumeSimplexConstraints::beginRows(const Points& p, const Eigen::VectorXd& w) {
+  MSK_ASSERT(p.rows() >= first_ + nb_.rows() && w.size() == p.rows(), "volume-simplex constraints: size mismatch");
 }
 
 bool VolumeSimplexConstraints::row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const {
   (void)w;
-  if (!active_[r]) return false;
-  const double sumEps = eps_(r, 0) + eps_(r, 1) + eps_(r, 2) + eps_(r, 3);
-  if (!(std::fabs(sumEps - 1.0) < 1e-9)) return false;  // as volumeSimplexCorrection()
-  out.count = 5;
-  out.index[0] = first_ + r;
-  out.grad[0] = out.react[0] = -1.0;
-  out.c = -p.row(first_ + r).transpose();
+  const int v = rows_[static_cast<size_t>(r)];
+  Vec3 pi[4];
+  double eps[4];
   for (int i = 0; i < 4; ++i) {
-    out.index[i + 1] = first_ + nb_(r, i);
-    out.grad[i + 1] = out.react[i + 1] = eps_(r, i);
-    out.c += eps_(r, i) * p.row(first_ + nb_(r, i)).transpose();
+    pi[i] = p.row(first_ + nb_(v, i)).transpose();
+    eps[i] = eps_(v, i);
   }
-  out.gamma = gamma_;
-  out.direction = false;
-  return out.c.allFinite();
+  if (!volumeSimplexRow(p.row(first_ + v).transpose(), pi, eps, gamma_, out)) return false;
+  rowParticles(r, out.index);
+  return true;
 }
 
 TetMesh makeCubeTets(int n, double edgeMm) {

@@ -18,7 +18,7 @@ namespace msk {
 
 namespace {
 
-const std::vector<std::string> kTopKeys = {"objects", "collisions", "phantom", "description"};
+const std::vector<std::string> kTopKeys = {"objects", "collisions", "description", "provenance"};
 const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "template", "polarity",
                                               "force", "model", "profiles_from"};
 const std::vector<std::string> kModelKeys = {"shape_memory", "internal_stiffness", "global_prior",    "image_force",
@@ -52,20 +52,20 @@ class Checker {
   /// Throws on any key of `obj` not in `known`.
   void knownKeys(const Json& obj, const std::vector<std::string>& known, const std::string& where,
                  const char* what) const {
-    for (const auto& kv : obj.asObject())
-      if (std::find(known.begin(), known.end(), kv.first) == known.end())
-        fail(where, std::string("unknown ") + what + " \"" + kv.first + "\" (known: " + joined(known) + ")");
+    for (const auto& kv : obj.items())
+      if (std::find(known.begin(), known.end(), kv.key()) == known.end())
+        fail(where, std::string("unknown ") + what + " \"" + kv.key() + "\" (known: " + joined(known) + ")");
   }
   /// A string member, required or optional (nullptr if absent and optional).
   const std::string* string(const Json& obj, const std::string& key, const std::string& where, bool required) const {
-    const Json* v = obj.find(key);
+    const Json* v = jsonMember(obj, key);
     if (!v) {
       if (required) fail(where, "missing key \"" + key + "\"");
       return nullptr;
     }
-    if (!v->isString()) fail(where, "\"" + key + "\" must be a string, found " + v->typeName() + " " + shown(*v));
-    if (v->asString().empty()) fail(where, "\"" + key + "\" must not be empty");
-    return &v->asString();
+    if (!v->is_string()) fail(where, "\"" + key + "\" must be a string, found " + v->type_name() + " " + shown(*v));
+    if (v->get<std::string>().empty()) fail(where, "\"" + key + "\" must not be empty");
+    return &v->get_ref<const std::string&>();
   }
   /// An optional string member restricted to `choices`; returns its index or -1 if absent.
   int choice(const Json& obj, const std::string& key, const std::vector<std::string>& choices, const std::string& where,
@@ -79,22 +79,22 @@ class Checker {
   }
   /// An optional boolean member (nullptr if absent).
   const bool* boolean(const Json& obj, const std::string& key, const std::string& where, bool* store) const {
-    const Json* v = obj.find(key);
+    const Json* v = jsonMember(obj, key);
     if (!v) return nullptr;
-    if (!v->isBool()) fail(where, "\"" + key + "\" must be true or false, found " + v->typeName() + " " + shown(*v));
-    *store = v->asBool();
+    if (!v->is_boolean()) fail(where, "\"" + key + "\" must be true or false, found " + v->type_name() + " " + shown(*v));
+    *store = v->get<bool>();
     return store;
   }
   /// Range of an optional number.
   enum class Range { UnitInterval, NonNegative, Positive };
   /// An optional finite number member in `range`; `*store` set and true if present.
   bool number(const Json& obj, const std::string& key, Range range, const std::string& where, double* store) const {
-    const Json* v = obj.find(key);
+    const Json* v = jsonMember(obj, key);
     if (!v) return false;
     const char* wanted = range == Range::UnitInterval  ? "a number in [0, 1]"
                          : range == Range::NonNegative ? "a number >= 0"
                                                        : "a number > 0";
-    const double x = v->isNumber() ? v->asNumber() : std::nan("");
+    const double x = v->is_number() ? v->get<double>() : std::nan("");
     const bool ok = std::isfinite(x) && (range == Range::UnitInterval  ? x >= 0 && x <= 1
                                          : range == Range::NonNegative ? x >= 0
                                                                        : x > 0);
@@ -119,19 +119,19 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   ObjectModel m = defaultModel(obj.kind);
   const std::string at = where + " model";
   const Json empty = Json::object();
-  const Json* model = o.find("model");
+  const Json* model = jsonMember(o, "model");
   if (!model) model = &empty;
-  if (!model->isObject())
-    check.fail(at, std::string("expected an object, found ") + model->typeName() + " " + shown(*model));
+  if (!model->is_object())
+    check.fail(at, std::string("expected an object, found ") + model->type_name() + " " + shown(*model));
   check.knownKeys(*model, kModelKeys, at, "key");
 
-  if (const Json* v = model->find("shape_memory")) {
-    if (v->isBool() && !v->asBool()) {
+  if (const Json* v = jsonMember(*model, "shape_memory")) {
+    if (v->is_boolean() && !v->get<bool>()) {
       m.shapeMemory.reset();
     } else {
-      if (!v->isString() || (v->asString() != "template" && v->asString() != "smoothing"))
+      if (!v->is_string() || (v->get<std::string>() != "template" && v->get<std::string>() != "smoothing"))
         check.fail(at, "\"shape_memory\" must be \"template\", \"smoothing\" or false, found " + shown(*v));
-      m.shapeMemory = v->asString() == "template" ? InternalMode::ShapeMemory : InternalMode::Smoothing;
+      m.shapeMemory = v->get<std::string>() == "template" ? InternalMode::ShapeMemory : InternalMode::Smoothing;
     }
   }
   const bool stiffness =
@@ -139,13 +139,13 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   if (stiffness && !m.shapeMemory)
     check.fail(at, "\"internal_stiffness\" is given but \"shape_memory\" is false (no internal constraint)");
 
-  if (const Json* v = model->find("global_prior")) {
+  if (const Json* v = jsonMember(*model, "global_prior")) {
     const std::vector<std::string> priors = {"rigid", "similarity", "affine"};
-    if (v->isBool() && !v->asBool()) {
+    if (v->is_boolean() && !v->get<bool>()) {
       m.globalPrior = false;
       m.priorTransform.reset();
     } else {
-      const auto it = v->isString() ? std::find(priors.begin(), priors.end(), v->asString()) : priors.end();
+      const auto it = v->is_string() ? std::find(priors.begin(), priors.end(), v->get<std::string>()) : priors.end();
       if (it == priors.end())
         check.fail(at, "\"global_prior\" must be one of rigid, similarity, affine or false, found " + shown(*v));
       m.globalPrior = true;
@@ -192,36 +192,36 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
 /// as the affine map from template coordinates to where the profiles are learned. Only with the profile force.
 std::optional<Eigen::Matrix4d> parseProfileSource(const Checker& check, const Json& o, const std::string& where,
                                                   const SceneObject& obj) {
-  const Json* v = o.find("profiles_from");
+  const Json* v = jsonMember(o, "profiles_from");
   if (!v) return std::nullopt;
   const std::string at = where + " profiles_from";
-  if (!v->isObject())
-    check.fail(at, std::string("expected {\"mirror_x\": x_mm} or {\"matrix\": 4x4}, found ") + v->typeName() + " " +
+  if (!v->is_object())
+    check.fail(at, std::string("expected {\"mirror_x\": x_mm} or {\"matrix\": 4x4}, found ") + v->type_name() + " " +
                        shown(*v));
   check.knownKeys(*v, {"mirror_x", "matrix"}, at, "key");
-  const Json* mirror = v->find("mirror_x");
-  const Json* matrix = v->find("matrix");
+  const Json* mirror = jsonMember(*v, "mirror_x");
+  const Json* matrix = jsonMember(*v, "matrix");
   if (!mirror == !matrix) check.fail(at, "give exactly one of \"mirror_x\" and \"matrix\"");
   Eigen::Matrix4d p = Eigen::Matrix4d::Identity();
   if (mirror) {
     // x' = 2c − x: the reflection about the plane x = c (RAS mm).
-    if (!mirror->isNumber() || !std::isfinite(mirror->asNumber()))
+    if (!mirror->is_number() || !std::isfinite(mirror->get<double>()))
       check.fail(at, "\"mirror_x\" must be a finite number (mm), found " + shown(*mirror));
     p(0, 0) = -1;
-    p(0, 3) = 2 * mirror->asNumber();
+    p(0, 3) = 2 * mirror->get<double>();
   } else {
     const char* shape = "\"matrix\" must be 4 rows of 4 finite numbers with last row 0 0 0 1, found ";
-    if (!matrix->isArray() || matrix->size() != 4) check.fail(at, shape + shown(*matrix));
+    if (!matrix->is_array() || matrix->size() != 4) check.fail(at, shape + shown(*matrix));
     for (int r = 0; r < 4; ++r) {
-      const Json& row = matrix->asArray()[static_cast<size_t>(r)];
-      if (!row.isArray() || row.size() != 4) check.fail(at, shape + shown(row));
+      const Json& row = (*matrix)[static_cast<size_t>(r)];
+      if (!row.is_array() || row.size() != 4) check.fail(at, shape + shown(row));
       for (int c = 0; c < 4; ++c) {
-        const Json& x = row.asArray()[static_cast<size_t>(c)];
-        if (!x.isNumber() || !std::isfinite(x.asNumber())) check.fail(at, shape + shown(row));
-        p(r, c) = x.asNumber();
+        const Json& x = row[static_cast<size_t>(c)];
+        if (!x.is_number() || !std::isfinite(x.get<double>())) check.fail(at, shape + shown(row));
+        p(r, c) = x.get<double>();
       }
     }
-    if (p.row(3) != Eigen::RowVector4d(0, 0, 0, 1)) check.fail(at, shape + shown(matrix->asArray()[3]));
+    if (p.row(3) != Eigen::RowVector4d(0, 0, 0, 1)) check.fail(at, shape + shown((*matrix)[3]));
     // Invertible, relative to the matrix's scale (|det A| against the product of its row lengths).
     const Eigen::Matrix3d a = p.topLeftCorner<3, 3>();
     const double scale = a.row(0).norm() * a.row(1).norm() * a.row(2).norm();
@@ -277,31 +277,33 @@ const char* objectKindName(ObjectKind k) {
 
 Scene parseScene(const Json& json, const std::string& path) {
   const Checker check(path);
-  if (!json.isObject()) check.fail("", std::string("a scene must be a JSON object, found ") + json.typeName());
+  if (!json.is_object()) check.fail("", std::string("a scene must be a JSON object, found ") + json.type_name());
   check.knownKeys(json, kTopKeys, "", "top-level key");
 
   Scene scene;
   scene.path = path;
-  scene.metadata = Json::object();
-  for (const char* key : {"phantom", "description"})
-    if (const Json* v = json.find(key)) scene.metadata[key] = *v;
+  if (const std::string* d = check.string(json, "description", "", false)) scene.description = *d;
+  if (const Json* v = jsonMember(json, "provenance")) {
+    if (!v->is_object()) check.fail("", std::string("\"provenance\" must be an object, found ") + v->type_name());
+    scene.provenance = *v;
+  }
 
   // Objects: every key checked first (cheap errors before any template is read).
-  const Json* objects = json.find("objects");
+  const Json* objects = jsonMember(json, "objects");
   if (!objects) check.fail("", "missing key \"objects\"");
-  if (!objects->isArray()) check.fail("", std::string("\"objects\" must be an array, found ") + objects->typeName());
-  if (objects->asArray().empty()) check.fail("", "\"objects\" is empty (a scene needs at least one object)");
+  if (!objects->is_array()) check.fail("", std::string("\"objects\" must be an array, found ") + objects->type_name());
+  if (objects->empty()) check.fail("", "\"objects\" is empty (a scene needs at least one object)");
   const fs::path folder = fs::path(path).parent_path();
   std::map<std::string, size_t> byName;
   std::map<int, size_t> byLabel;
   const std::vector<std::string> kinds = {"bone", "muscle", "generic"};
   const std::vector<std::string> polarities = {"auto", "dark-inside", "bright-inside"};
-  for (size_t i = 0; i < objects->asArray().size(); ++i) {
-    const Json& o = objects->asArray()[i];
-    if (!o.isObject()) check.fail(objectWhere(i, ""), std::string("expected an object, found ") + o.typeName());
+  for (size_t i = 0; i < objects->size(); ++i) {
+    const Json& o = (*objects)[i];
+    if (!o.is_object()) check.fail(objectWhere(i, ""), std::string("expected an object, found ") + o.type_name());
     // The name first, so that every later message can show it.
     std::string name;
-    if (const Json* n = o.find("name"); n && n->isString()) name = n->asString();
+    if (const Json* n = jsonMember(o, "name"); n && n->is_string()) name = n->get<std::string>();
     const std::string where = objectWhere(i, name);
     check.knownKeys(o, kObjectKeys, where, "key");
 
@@ -311,12 +313,12 @@ Scene parseScene(const Json& json, const std::string& path) {
       check.fail(where, "duplicate name \"" + obj.name + "\" (also " + objectWhere(it->second, obj.name) + ")");
     byName[obj.name] = i;
 
-    const Json* label = o.find("label");
+    const Json* label = jsonMember(o, "label");
     if (!label) check.fail(where, "missing key \"label\"");
-    if (!label->isNumber() || label->asNumber() != std::floor(label->asNumber()) || label->asNumber() < 1 ||
-        label->asNumber() > 32767)
+    if (!label->is_number() || label->get<double>() != std::floor(label->get<double>()) || label->get<double>() < 1 ||
+        label->get<double>() > 32767)
       check.fail(where, "\"label\" must be an integer in 1..32767, found " + shown(*label));
-    obj.label = label->asInt();
+    obj.label = jsonInt(*label);
     if (auto it = byLabel.find(obj.label); it != byLabel.end())
       check.fail(where, "duplicate label " + std::to_string(obj.label) + " (also " +
                             objectWhere(it->second, scene.objects[it->second].name) + ")");
@@ -339,16 +341,16 @@ Scene parseScene(const Json& json, const std::string& path) {
   bool wantAuto = false;
   double autoWithinMm = kAutoWithinMm;
   CollisionPair autoParameters;
-  if (const Json* col = json.find("collisions")) {
-    if (col->isString()) {
-      if (col->asString() != "auto")
+  if (const Json* col = jsonMember(json, "collisions")) {
+    if (col->is_string()) {
+      if (col->get<std::string>() != "auto")
         check.fail("", "\"collisions\" must be an array or \"auto\", found " + shown(*col));
       wantAuto = true;
-    } else if (!col->isArray()) {
-      check.fail("", std::string("\"collisions\" must be an array or \"auto\", found ") + col->typeName());
+    } else if (!col->is_array()) {
+      check.fail("", std::string("\"collisions\" must be an array or \"auto\", found ") + col->type_name());
     }
-    const Json::Array none;
-    const Json::Array& entries = col->isArray() ? col->asArray() : none;
+    const Json none = Json::array();
+    const Json& entries = col->is_array() ? *col : none;
     size_t autoEntry = 0;
     auto names = [&] {
       std::vector<std::string> all;
@@ -358,12 +360,12 @@ Scene parseScene(const Json& json, const std::string& path) {
     for (size_t c = 0; c < entries.size(); ++c) {
       const Json& e = entries[c];
       std::string where = "collisions[" + std::to_string(c) + "]";
-      if (e.isObject() && e.find("auto")) {
+      if (e.is_object() && jsonMember(e, "auto")) {
         std::vector<std::string> known = {"auto", "within_mm"};
         known.insert(known.end(), kPairParameterKeys.begin(), kPairParameterKeys.end());
         check.knownKeys(e, known, where, "key");
-        const Json& flag = *e.find("auto");
-        if (!flag.isBool() || !flag.asBool())
+        const Json& flag = *jsonMember(e, "auto");
+        if (!flag.is_boolean() || !flag.get<bool>())
           check.fail(where, "\"auto\" must be true (leave the entry out for no automatic pairs), found " + shown(flag));
         if (wantAuto)
           check.fail(where, "a second \"auto\" entry (also collisions[" + std::to_string(autoEntry) + "]): keep one");
@@ -374,16 +376,16 @@ Scene parseScene(const Json& json, const std::string& path) {
         continue;
       }
       const Json* pair = &e;
-      if (e.isObject()) {
-        if (!e.find("pair")) check.fail(where, "an object entry needs \"pair\": [\"a\", \"b\"] or \"auto\": true");
-        pair = e.find("pair");
+      if (e.is_object()) {
+        if (!jsonMember(e, "pair")) check.fail(where, "an object entry needs \"pair\": [\"a\", \"b\"] or \"auto\": true");
+        pair = jsonMember(e, "pair");
       }
-      if (!pair->isArray() || pair->size() != 2 || !pair->asArray()[0].isString() || !pair->asArray()[1].isString())
+      if (!pair->is_array() || pair->size() != 2 || !(*pair)[0].is_string() || !(*pair)[1].is_string())
         check.fail(where, "expected a pair of object names like [\"femur\", \"quadriceps\"], found " + shown(*pair));
-      where += " (" + pair->asArray()[0].asString() + ", " + pair->asArray()[1].asString() + ")";
+      where += " (" + (*pair)[0].get<std::string>() + ", " + (*pair)[1].get<std::string>() + ")";
       int idx[2];
       for (int s = 0; s < 2; ++s) {
-        const std::string& n = pair->asArray()[s].asString();
+        const std::string& n = (*pair)[s].get<std::string>();
         auto it = byName.find(n);
         if (it == byName.end()) check.fail(where, "unknown object \"" + n + "\" (objects: " + names() + ")");
         idx[s] = static_cast<int>(it->second);
@@ -393,7 +395,7 @@ Scene parseScene(const Json& json, const std::string& path) {
       CollisionPair p;
       p.a = std::min(idx[0], idx[1]);
       p.b = std::max(idx[0], idx[1]);
-      if (e.isObject()) {
+      if (e.is_object()) {
         std::vector<std::string> known = {"pair"};
         known.insert(known.end(), kPairParameterKeys.begin(), kPairParameterKeys.end());
         check.knownKeys(e, known, where, "key");
@@ -419,6 +421,7 @@ Scene parseScene(const Json& json, const std::string& path) {
 
   // Auto pairs: every pair of templates within the distance (or overlapping) not declared by name.
   if (wantAuto) {
+    scene.autoCollisions = AutoCollisions{autoWithinMm, autoParameters};
     std::vector<const TriangleMesh*> templates;
     for (const auto& o : scene.objects) templates.push_back(&o.templ);
     for (const auto& [a, b] : surfacesWithin(templates, autoWithinMm)) {
@@ -447,6 +450,118 @@ void toProfileSource(const SceneObject& obj, Points& positions, Points& normals)
   }
 }
 
-Scene loadScene(const std::string& path) { return parseScene(Json::readFile(path), path); }
+Scene loadScene(const std::string& path) { return parseScene(readJsonFile(path), path); }
+
+namespace {
+
+const char* polarityKey(Polarity p) {
+  return p == Polarity::DarkInside ? "dark-inside" : p == Polarity::BrightInside ? "bright-inside" : "auto";
+}
+
+/// The "model" keys of `m` that differ from the defaults of its kind (an empty object if none).
+Json modelJson(const ObjectModel& m, ObjectKind kind) {
+  const ObjectModel d = defaultModel(kind);
+  Json j = Json::object();
+  if (m.shapeMemory != d.shapeMemory)
+    j["shape_memory"] = !m.shapeMemory ? Json(false)
+                                       : Json(*m.shapeMemory == InternalMode::ShapeMemory ? "template" : "smoothing");
+  if (m.internalStiffness >= 0) j["internal_stiffness"] = m.internalStiffness;
+  if (!m.globalPrior) {
+    j["global_prior"] = false;
+  } else if (m.priorTransform) {
+    const PriorTransform t = *m.priorTransform;
+    j["global_prior"] = t == PriorTransform::Rigid ? "rigid" : t == PriorTransform::Similarity ? "similarity" : "affine";
+  }
+  if (m.medialAxis != d.medialAxis) j["medial_axis"] = m.medialAxis;
+  if (m.radialStiffness >= 0) j["radial_stiffness"] = m.radialStiffness;
+  if (m.axisSpacingMm > 0) j["axis_spacing_mm"] = m.axisSpacingMm;
+  if (m.axisFirst) j["axis_first"] = *m.axisFirst;
+  if (m.refine) j["refine"] = *m.refine;
+  if (m.remesh) j["remesh"] = *m.remesh;
+  if (m.volumetric != d.volumetric) j["volumetric"] = m.volumetric;
+  if (m.volumeStiffness >= 0) j["volume_stiffness"] = m.volumeStiffness;
+  return j;
+}
+
+/// {"mirror_x": c} for a mirror about x = c, else {"matrix": the 4×4 rows}.
+Json profileSourceJson(const Eigen::Matrix4d& p) {
+  Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
+  mirror(0, 0) = -1;
+  mirror(0, 3) = p(0, 3);
+  Json j = Json::object();
+  if (p == mirror) {
+    j["mirror_x"] = 0.5 * p(0, 3);
+    return j;
+  }
+  Json rows = Json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back(Json::array({p(r, 0), p(r, 1), p(r, 2), p(r, 3)}));
+  j["matrix"] = rows;
+  return j;
+}
+
+/// The optional parameters of a pair (or of the auto entry) into `j`; whether there were any.
+bool pairParametersJson(const CollisionPair& p, Json& j) {
+  const size_t before = j.size();
+  if (p.gapMm >= 0) j["gap_mm"] = p.gapMm;
+  if (p.proximityMm > 0) j["proximity_mm"] = p.proximityMm;
+  if (p.friction >= 0) j["friction"] = p.friction;
+  if (p.mode != CollisionMode::Position) j["mode"] = collisionModeName(p.mode);
+  if (p.target != CollisionTarget::Spring) j["target"] = collisionTargetName(p.target);
+  if (p.resolution) j["resolution"] = collisionResolutionName(*p.resolution);
+  return j.size() > before;
+}
+
+/// `file` relative to `folder` when it lies below it, else absolute.
+std::string pathFrom(const std::string& folder, const std::string& file) {
+  const fs::path base = fs::absolute(folder.empty() ? "." : folder).lexically_normal();
+  const fs::path rel = fs::absolute(file).lexically_normal().lexically_relative(base);
+  if (rel.empty() || *rel.begin() == "..") return fs::absolute(file).lexically_normal().string();
+  return rel.string();
+}
+
+}  // namespace
+
+Json sceneJson(const Scene& scene, const std::string& folder) {
+  Json out = Json::object();
+  Json objects = Json::array();
+  for (const SceneObject& o : scene.objects) {
+    Json j = Json::object();
+    j["name"] = o.name;
+    j["label"] = o.label;
+    j["kind"] = objectKindName(o.kind);
+    j["template"] = pathFrom(folder, o.templatePath);
+    if (o.hasPolarity) j["polarity"] = polarityKey(o.polarity);
+    if (o.hasForce) j["force"] = o.force == TargetMode::Profile ? "profile" : "gradient";
+    if (const Json model = modelJson(o.model, o.kind); !model.empty()) j["model"] = model;
+    if (o.profileSource) j["profiles_from"] = profileSourceJson(*o.profileSource);
+    objects.push_back(j);
+  }
+  out["objects"] = objects;
+  Json collisions = Json::array();
+  for (const CollisionPair& p : scene.collisions) {
+    if (p.fromAuto) continue;
+    const Json names = Json::array({scene.objects[static_cast<size_t>(p.a)].name, scene.objects[static_cast<size_t>(p.b)].name});
+    Json entry = Json::object();
+    entry["pair"] = names;
+    collisions.push_back(pairParametersJson(p, entry) ? entry : names);
+  }
+  if (scene.autoCollisions) {
+    Json entry = Json::object();
+    entry["auto"] = true;
+    entry["within_mm"] = scene.autoCollisions->withinMm;
+    const bool parameters = pairParametersJson(scene.autoCollisions->parameters, entry);
+    const bool plain = !parameters && scene.autoCollisions->withinMm == kAutoWithinMm;
+    if (collisions.empty() && plain) out["collisions"] = "auto";
+    else collisions.push_back(entry);
+  }
+  if (!collisions.empty()) out["collisions"] = collisions;
+  if (!scene.description.empty()) out["description"] = scene.description;
+  if (scene.provenance.is_object()) out["provenance"] = scene.provenance;
+  return out;
+}
+
+void writeScene(const Scene& scene, const std::string& path) {
+  writeJsonFile(path, sceneJson(scene, fs::path(path).parent_path().string()));
+}
 
 }  // namespace msk

@@ -57,11 +57,17 @@ size_t keepLargestComponent(std::vector<uint8_t>& mask, const Grid& g) {
 
 }  // namespace
 
+void checkTemplateOptions(const TemplateOptions& opts) {
+  if (opts.vertices < 4 || opts.vertices > 10000000)
+    throw ParameterError("--vertices", std::to_string(opts.vertices), "must be in 4..10000000");
+  if (!(opts.smoothingSigmaMm >= 0) || !std::isfinite(opts.smoothingSigmaMm))
+    throw ParameterError("--smooth", std::to_string(opts.smoothingSigmaMm),
+                         "must be >= 0 mm (0: half the largest voxel spacing)");
+}
+
 TriangleMesh templateFromLabels(const LabelMap& labels, int label, const TemplateOptions& opts,
                                 TemplateReport* report) {
-  if (opts.vertices < 4) throw ParameterError("vertices", std::to_string(opts.vertices), "must be at least 4");
-  if (!(opts.smoothingSigmaMm >= 0) || !std::isfinite(opts.smoothingSigmaMm))
-    throw ParameterError("smoothingSigmaMm", std::to_string(opts.smoothingSigmaMm), "must be finite and >= 0");
+  checkTemplateOptions(opts);
   const Grid& g = labels.grid;
   const std::string gridProblem = g.problem();
   if (!gridProblem.empty()) throw Error("templateFromLabels: invalid grid: " + gridProblem);

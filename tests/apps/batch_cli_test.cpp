@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -90,12 +90,12 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   const auto metrics = csvRows(out + "/metrics.csv");
   ASSERT_EQ(metrics.size(), 3u);
   EXPECT_EQ(metrics[2][1], "femur_own_scene");
-  const msk::Json report = msk::Json::readFile(out + "/p01/report.json");
-  EXPECT_EQ(report.at("parameters").at("quality").asString(), "fast");  // the forwarded options reached the case
-  const msk::Json batch = msk::Json::readFile(out + "/batch.json");
-  EXPECT_EQ(batch.at("cases").at("ok").asInt(), 2);
-  EXPECT_EQ(batch.at("cases").at("failed").asInt(), 1);
-  EXPECT_EQ(batch.at("cases").at("skipped_no_image").asInt(), 1);
+  const msk::Json report = msk::readJsonFile(out + "/p01/report.json");
+  EXPECT_EQ(report.at("parameters").at("quality").get<std::string>(), "fast");  // the forwarded options reached the case
+  const msk::Json batch = msk::readJsonFile(out + "/batch.json");
+  EXPECT_EQ(batch.at("cases").at("ok").get<int>(), 2);
+  EXPECT_EQ(batch.at("cases").at("failed").get<int>(), 1);
+  EXPECT_EQ(batch.at("cases").at("skipped_no_image").get<int>(), 1);
 
   // Repair p03 and rerun: p01 and p02 are not run again (their results stay as they were), p03 now succeeds; the
   // staging folder a killed run would have left for p03 is removed.

@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <string>
 
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -53,13 +53,13 @@ TEST(BenchCli, SmallSceneRunPrintsStagesAndWritesFigures) {
     EXPECT_NE(r.out.find(word), std::string::npos) << word << "\n" << r.out;
   ASSERT_TRUE(fs::exists(out + "/bench.json"));
   ASSERT_TRUE(fs::exists(out + "/objects.csv"));
-  const msk::Json j = msk::Json::readFile(out + "/bench.json");
-  EXPECT_EQ(j.at("structures").asInt(), 4);
-  EXPECT_EQ(j.at("collision_pairs").asInt(), 6);
+  const msk::Json j = msk::readJsonFile(out + "/bench.json");
+  EXPECT_EQ(j.at("structures").get<int>(), 4);
+  EXPECT_EQ(j.at("collision_pairs").get<int>(), 6);
   ASSERT_EQ(j.at("objects").size(), 4u);
-  for (const msk::Json& o : j.at("objects").asArray()) EXPECT_GT(o.at("dice").asNumber(), 0.8) << o.dump();
-  EXPECT_GT(j.at("seconds_per_stage").at("whole").asNumber(), 0.0);
-  EXPECT_GT(j.at("peak_rss_mib").asNumber(), 0.0);
+  for (const msk::Json& o : j.at("objects")) EXPECT_GT(o.at("dice").get<double>(), 0.8) << o.dump();
+  EXPECT_GT(j.at("seconds_per_stage").at("whole").get<double>(), 0.0);
+  EXPECT_GT(j.at("peak_rss_mib").get<double>(), 0.0);
   EXPECT_EQ(j.at("pairs").size(), 6u);
   // No staging folder left beside the output.
   for (const auto& e : fs::directory_iterator(dir.path()))

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "test_support.h"
 
 // Measured: femur 0.911, hip bone 0.948, gluteus maximus 0.885, gluteus medius 0.862, no overlap (README, Real
@@ -17,9 +17,9 @@ TEST(CtExample, RunsFromTheCommandLineAlone) {
                           std::string(MSK_SOURCE_DIR) + "/scripts/ct-example.sh' '" + data + "' > '" +
                           dir.file("log.txt") + "' 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << msk::test::readBytes(dir.file("log.txt"));
-  const msk::Json metrics = msk::Json::readFile(dir.file("ct/metrics.json"));
-  const msk::Json report = msk::Json::readFile(dir.file("ct/result/report.json"));
-  EXPECT_EQ(report.at("overlap_voxels").asInt(), 0);
+  const msk::Json metrics = msk::readJsonFile(dir.file("ct/metrics.json"));
+  const msk::Json report = msk::readJsonFile(dir.file("ct/result/report.json"));
+  EXPECT_EQ(report.at("overlap_voxels").get<int>(), 0);
   const std::string log = msk::test::readBytes(dir.file("log.txt"));
   std::printf("%s", log.substr(log.find("== result")).c_str());
   const struct {
@@ -28,10 +28,10 @@ TEST(CtExample, RunsFromTheCommandLineAlone) {
   } objects[] = {{"76", 0.90}, {"78", 0.93}, {"81", 0.87}, {"83", 0.85}};
   for (const auto& o : objects) {
     bool found = false;
-    for (const msk::Json& m : metrics.at("metrics").asArray())
-      if (m.at("object").asString() == o.label) {
+    for (const msk::Json& m : metrics.at("metrics"))
+      if (m.at("object").get<std::string>() == o.label) {
         found = true;
-        EXPECT_GE(m.at("dice").asNumber(), o.guard) << "label " << o.label;
+        EXPECT_GE(m.at("dice").get<double>(), o.guard) << "label " << o.label;
       }
     EXPECT_TRUE(found) << "label " << o.label << " in metrics.json";
   }

@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <string>
 
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/scene.h"
@@ -32,8 +32,8 @@ TEST(SceneCli, BuildsASceneThatSegmentRuns) {
   EXPECT_EQ(scene.objects[1].label, 2);
   EXPECT_EQ(scene.objects[1].kind, msk::ObjectKind::Muscle);
   EXPECT_EQ(scene.collisions.size(), 1u) << "\"auto\": femur and quadriceps touch";
-  const msk::Json json = msk::Json::readFile(out + "/scene.json");
-  EXPECT_EQ(json.at("objects").asArray()[0].find("profiles_from"), nullptr) << "not mirrored: no profile source";
+  const msk::Json json = msk::readJsonFile(out + "/scene.json");
+  EXPECT_EQ(msk::jsonMember(json.at("objects")[0], "profiles_from"), nullptr) << "not mirrored: no profile source";
 
   r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", out + "/scene.json", "--out",
               dir.file("result"), "--quality", "fast", "--no-qc"});
@@ -41,9 +41,9 @@ TEST(SceneCli, BuildsASceneThatSegmentRuns) {
   r = runCli({"eval", "--result", dir.file("result/labels.nii.gz"), "--reference", kSample + "labels.nii.gz",
               "--labels", "1,2", "--json", dir.file("m.json")});
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  const msk::Json metrics = msk::Json::readFile(dir.file("m.json"));
-  for (const msk::Json& m : metrics.at("metrics").asArray())
-    EXPECT_GT(m.at("dice").asNumber(), 0.95) << m.at("object").asString();
+  const msk::Json metrics = msk::readJsonFile(dir.file("m.json"));
+  for (const msk::Json& m : metrics.at("metrics"))
+    EXPECT_GT(m.at("dice").get<double>(), 0.95) << m.at("object").get<std::string>();
 }
 
 // --mirror-x reflects every template across x = MM and gives each object the profile force learning where it came
@@ -64,14 +64,14 @@ TEST(SceneCli, MirroredTemplatesLearnTheirProfilesWhereTheyCameFrom) {
   const double xa = a.vertices.col(0).mean(), xb = b.vertices.col(0).mean();
   EXPECT_NEAR(xb, 20.0 - xa, 1e-6) << "mirrored across x = 10 mm";
   EXPECT_NEAR(a.vertices.col(1).mean(), b.vertices.col(1).mean(), 1e-6);
-  const msk::Json json = msk::Json::readFile(mirrored + "/scene.json");
-  const msk::Json& femur = json.at("objects").asArray()[0];
-  EXPECT_EQ(femur.at("label").asInt(), 7);
-  EXPECT_EQ(femur.at("force").asString(), "profile");
-  EXPECT_DOUBLE_EQ(femur.at("profiles_from").at("mirror_x").asNumber(), 10.0);
-  EXPECT_TRUE(femur.at("model").at("refine").asBool());
-  EXPECT_EQ(json.at("objects").asArray()[1].find("model"), nullptr) << "a muscle does not refine";
-  EXPECT_EQ(json.at("collisions").asArray().size(), 1u);
+  const msk::Json json = msk::readJsonFile(mirrored + "/scene.json");
+  const msk::Json& femur = json.at("objects")[0];
+  EXPECT_EQ(femur.at("label").get<int>(), 7);
+  EXPECT_EQ(femur.at("force").get<std::string>(), "profile");
+  EXPECT_DOUBLE_EQ(femur.at("profiles_from").at("mirror_x").get<double>(), 10.0);
+  EXPECT_TRUE(femur.at("model").at("refine").get<bool>());
+  EXPECT_EQ(msk::jsonMember(json.at("objects")[1], "model"), nullptr) << "a muscle does not refine";
+  EXPECT_EQ(json.at("collisions").size(), 1u);
   const msk::Scene scene = msk::loadScene(mirrored + "/scene.json");
   EXPECT_EQ(scene.objects.size(), 2u);
 }
@@ -93,6 +93,6 @@ TEST(SceneCli, BadInputIsOneLineAndLeavesNoOutput) {
   check({"--objects", "femur:1,quads:1"}, 2, "", "also femur's");
   check({"--objects", "femur:1:bone,femur:2"}, 2, "", "given twice");
   check({"--objects", "femur:1:bones"}, 2, "", "not a label");
-  check({"--objects", "femur:1", "--mirror-x", "0", "--midline-label", "2"}, 2, "", "not both");
+  check({"--objects", "femur:1", "--mirror-x", "0", "--midline-label", "2"}, 2, "", "--mirror-x excludes --midline-label");
   check({"--objects", "femur:1", "--collisions", "some"}, 2, "", "--collisions");
 }

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "msk/core/json.h"
+#include "msk/imaging/json.h"
 #include "msk/core/volume_simplex.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -70,12 +70,12 @@ TEST(SegmentCli, WritesMeshesLabelsReportAndPictures) {
   EXPECT_EQ(space, msk::MeshSpace::RAS);
   EXPECT_EQ(m.pointData.count("displacement_mm"), 1u);
   EXPECT_EQ(m.pointData.count("image_residual_mm"), 1u);
-  const msk::Json rep = msk::Json::readFile(out + "/report.json");
-  EXPECT_EQ(rep.at("mskseg_version").asString(), MSK_VERSION);
-  EXPECT_EQ(rep.at("parameters").at("quality").asString(), "fast");
-  EXPECT_GT(rep.at("objects").asArray()[0].at("steps").asInt(), 0);
-  EXPECT_GT(rep.at("objects").asArray()[0].at("volume_mm3").asNumber(), 50000.0);
-  EXPECT_TRUE(rep.at("objects").asArray()[0].at("seconds_per_constraint_family").find("simplex-internal"));
+  const msk::Json rep = msk::readJsonFile(out + "/report.json");
+  EXPECT_EQ(rep.at("mskseg_version").get<std::string>(), MSK_VERSION);
+  EXPECT_EQ(rep.at("parameters").at("quality").get<std::string>(), "fast");
+  EXPECT_GT(rep.at("objects")[0].at("steps").get<int>(), 0);
+  EXPECT_GT(rep.at("objects")[0].at("volume_mm3").get<double>(), 50000.0);
+  EXPECT_TRUE(msk::jsonMember(rep.at("objects")[0].at("seconds_per_constraint_family"), "simplex-internal"));
   // The label map sits on the input grid with the input's affine, exactly.
   msk::Grid in, lab;
   const msk::NiftiInfo a = msk::readNiftiHeader(kSample + "image.nii.gz", &in);
@@ -101,21 +101,21 @@ TEST(SegmentCli, MuscleTemplatesAreRemeshedAndTheReportCountsCrossingFaces) {
     if (keep) args.push_back("--keep-template-mesh");
     const auto r = runCli(args);
     ASSERT_EQ(r.exitCode, 0) << r.err;
-    const msk::Json rep = msk::Json::readFile(out + "/report.json");
-    EXPECT_EQ(rep.at("parameters").at("remesh_templates").asBool(), !keep);
-    const msk::Json& femur = rep.at("objects").asArray()[0];
-    const msk::Json& muscle = rep.at("objects").asArray()[1];
-    EXPECT_FALSE(femur.at("template_remeshed").asBool());
-    EXPECT_EQ(femur.at("vertices").asInt(), femur.at("template_vertices").asInt());
-    EXPECT_EQ(muscle.at("template_remeshed").asBool(), !keep);
-    const int tv = muscle.at("template_vertices").asInt(), v = muscle.at("vertices").asInt();
+    const msk::Json rep = msk::readJsonFile(out + "/report.json");
+    EXPECT_EQ(rep.at("parameters").at("remesh_templates").get<bool>(), !keep);
+    const msk::Json& femur = rep.at("objects")[0];
+    const msk::Json& muscle = rep.at("objects")[1];
+    EXPECT_FALSE(femur.at("template_remeshed").get<bool>());
+    EXPECT_EQ(femur.at("vertices").get<int>(), femur.at("template_vertices").get<int>());
+    EXPECT_EQ(muscle.at("template_remeshed").get<bool>(), !keep);
+    const int tv = muscle.at("template_vertices").get<int>(), v = muscle.at("vertices").get<int>();
     if (keep)
       EXPECT_EQ(v, tv);
     else
       EXPECT_NEAR(v, tv, 0.1 * tv);
-    for (const msk::Json& o : rep.at("objects").asArray()) {
-      EXPECT_EQ(o.at("self_intersections").asNumber(), 0.0) << o.dump();
-      EXPECT_GE(o.at("folds_unfolded").asNumber(), 0.0) << o.dump();
+    for (const msk::Json& o : rep.at("objects")) {
+      EXPECT_EQ(o.at("self_intersections").get<double>(), 0.0) << o.dump();
+      EXPECT_GE(o.at("folds_unfolded").get<double>(), 0.0) << o.dump();
     }
     EXPECT_EQ(msk::readMesh(out + "/hamstrings.vtk").vertexCount(), v);
   }
@@ -153,21 +153,21 @@ TEST(SegmentCli, VolumetricObjectWritesItsTetMesh) {
   const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
                          femurScene(dir, ", \"model\": {\"volumetric\": true, \"volume_stiffness\": 0.5}"), "--out", out});
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  const msk::Json rep = msk::Json::readFile(out + "/report.json");
-  EXPECT_EQ(rep.at("volume_models_built").asInt(), 1);
-  const msk::Json& vm = rep.at("objects").asArray()[0].at("volume_model");
-  EXPECT_GT(vm.at("tets").asInt(), 1000);
-  const int inverted = vm.at("inverted_tets").asInt();
-  std::printf("femur volume model: %d tets, %d inverted, volume change %+.2f %%\n", vm.at("tets").asInt(), inverted,
-              vm.at("volume_change_percent").asNumber());
+  const msk::Json rep = msk::readJsonFile(out + "/report.json");
+  EXPECT_EQ(rep.at("volume_models_built").get<int>(), 1);
+  const msk::Json& vm = rep.at("objects")[0].at("volume_model");
+  EXPECT_GT(vm.at("tets").get<int>(), 1000);
+  const int inverted = vm.at("inverted_tets").get<int>();
+  std::printf("femur volume model: %d tets, %d inverted, volume change %+.2f %%\n", vm.at("tets").get<int>(), inverted,
+              vm.at("volume_change_percent").get<double>());
   EXPECT_EQ(inverted, 0);
   expectTetMeshOnItsSurface(out, "femur");
-  EXPECT_EQ(vm.at("mesh").asString(), "femur.vtu");
+  EXPECT_EQ(vm.at("mesh").get<std::string>(), "femur.vtu");
   const auto plain = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", femurScene(dir), "--out",
                              dir.file("plain"), "--quality", "fast"});
   ASSERT_EQ(plain.exitCode, 0) << plain.err;
   EXPECT_FALSE(fs::exists(dir.file("plain") + "/femur.vtu"));
-  EXPECT_EQ(msk::Json::readFile(dir.file("plain") + "/report.json").at("volume_models_built").asInt(), 0);
+  EXPECT_EQ(msk::readJsonFile(dir.file("plain") + "/report.json").at("volume_models_built").get<int>(), 0);
 }
 
 // A volumetric muscle among collision partners: the surfaces are separated after the evolution, and the written tet
@@ -187,7 +187,7 @@ TEST(SegmentCli, VolumetricMuscleAmongPartnersFollowsItsSeparatedSurface) {
   const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", dir.file("scene.json"), "--out", out,
                          "--quality", "fast", "--no-qc"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  const msk::Json rep = msk::Json::readFile(out + "/report.json");
-  EXPECT_EQ(rep.at("volume_models_built").asInt(), 1);
+  const msk::Json rep = msk::readJsonFile(out + "/report.json");
+  EXPECT_EQ(rep.at("volume_models_built").get<int>(), 1);
   expectTetMeshOnItsSurface(out, "quadriceps");
 }

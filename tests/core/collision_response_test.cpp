@@ -14,10 +14,14 @@
 #include <string>
 #include <vector>
 
-#include "msk/core/constraints.h"
+#include "msk/core/collision_constraint.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/target_constraint.h"
 #include "msk/core/error.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/core/constraint_set.h"
+#include "msk/core/transform_fit.h"
 
 namespace {
 

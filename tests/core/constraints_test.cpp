@@ -1,4 +1,7 @@
-#include "msk/core/constraints.h"
+#include "msk/core/collision_constraint.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/simplex_internal_constraint.h"
+#include "msk/core/target_constraint.h"
 
 #include <cmath>
 #include <random>
@@ -7,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "msk/core/transform_fit.h"
 
 namespace {
 Eigen::Vector3d randomVec(std::mt19937& rng, double s = 1.0) {

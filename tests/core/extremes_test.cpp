@@ -12,14 +12,18 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "msk/core/constraints.h"
+#include "msk/core/collision_constraint.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/simplex_internal_constraint.h"
+#include "msk/core/target_constraint.h"
 #include "msk/core/error.h"
 #include "msk/core/medial_axis.h"
-#include "msk/core/pbd_solver.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/core/constraint_set.h"
+#include "msk/core/transform_fit.h"
 
 namespace {
 
@@ -61,7 +65,7 @@ SphereSystem sphereSystem(double r, double gammaInternal, double gammaTarget, in
 }
 
 /// Runs `steps` steps; checks every state is finite and returns the largest displacement of any step.
-double run(msk::PbdSolver& solver, const std::vector<msk::ConstraintSet*>& sets, int steps) {
+double run(msk::Solver& solver, const std::vector<msk::ConstraintSet*>& sets, int steps) {
   double largest = 0;
   for (int i = 0; i < steps; ++i) {
     largest = std::max(largest, solver.step(sets));
@@ -113,7 +117,7 @@ TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
     EXPECT_NO_THROW(msk::RadialConstraints(att, s.vertexCount(), g));
     EXPECT_NO_THROW(msk::VolumeSimplexConstraints(vm, g));
     SphereSystem sys = sphereSystem(10.0, g, g);
-    msk::PbdSolver solver(msk::PbdOptions{});
+    msk::Solver solver(msk::SolverOptions{});
     solver.prepare(perturbed(sys.mesh.positions, 0.5), Eigen::VectorXd::Ones(sys.mesh.vertexCount()));
     const double largest = run(solver, sys.sets(), 30);
     // Bounded: nothing moves farther in one step than the initial distance to the targets plus the perturbation.
@@ -131,8 +135,8 @@ TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
     expectParameterError([&] { msk::VolumeSimplexConstraints c(vm, g); }, "volume stiffness");
     expectParameterError([&] { msk::CollisionConstraints c(0, 1, msk::simplexFanTriangles(s), 0.1, 1.0, g); },
                          "collision friction");
-    expectParameterError([&] { msk::PbdOptions o; o.damping = g; msk::PbdSolver p(o); }, "damping");
-    expectParameterError([&] { msk::PbdOptions o; o.drag = g; msk::PbdSolver p(o); }, "drag");
+    expectParameterError([&] { msk::SolverOptions o; o.damping = g; msk::Solver p(o); }, "damping");
+    expectParameterError([&] { msk::SolverOptions o; o.drag = g; msk::Solver p(o); }, "drag");
   }
 }
 
@@ -147,10 +151,10 @@ TEST(ExtremeTimeStep, TrajectoryDoesNotDependOnDt) {
   for (const double dt : {1.0, 1e-6, 1e-3, 0.1, 10.0}) {
     for (const double gamma : {0.5, 1.0}) {
       SphereSystem sys = sphereSystem(10.0, gamma, 0.25);
-      msk::PbdOptions o;
+      msk::SolverOptions o;
       o.dt = dt;
       o.iterations = 2;
-      msk::PbdSolver solver(o);
+      msk::Solver solver(o);
       solver.prepare(perturbed(sys.mesh.positions, 0.5), Eigen::VectorXd::Ones(sys.mesh.vertexCount()));
       const double largest = run(solver, sys.sets(), 40);
       EXPECT_LT(largest, 2.0) << "dt " << dt << " gamma " << gamma;
@@ -163,8 +167,8 @@ TEST(ExtremeTimeStep, TrajectoryDoesNotDependOnDt) {
   std::printf("[ dt ] 1e-6..10 s: largest difference from dt = 1 after 40 steps %.3g mm\n", worst);
   EXPECT_LT(worst, 1e-8);
   for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
-    expectParameterError([&] { msk::PbdOptions o; o.dt = dt; msk::PbdSolver p(o); }, "dt");
-  expectParameterError([&] { msk::PbdOptions o; o.iterations = 0; msk::PbdSolver p(o); }, "iterations");
+    expectParameterError([&] { msk::SolverOptions o; o.dt = dt; msk::Solver p(o); }, "dt");
+  expectParameterError([&] { msk::SolverOptions o; o.iterations = 0; msk::Solver p(o); }, "iterations");
 }
 
 // ------------------------------------------------------------------------------------------------ masses
@@ -178,7 +182,7 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
   int k = 0;
   for (const double w : {1e9, 1e-9}) {
     SphereSystem sys = sphereSystem(10.0, 0.5, 0.25);
-    msk::PbdSolver solver(msk::PbdOptions{});
+    msk::Solver solver(msk::SolverOptions{});
     solver.prepare(perturbed(sys.mesh.positions, 0.5), Eigen::VectorXd::Constant(sys.mesh.vertexCount(), w));
     run(solver, sys.sets(), steps);
     uniform[k++] = solver.positions();
@@ -196,7 +200,7 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
   msk::ShapeMatchingConstraint prior(sys.mesh.positions, msk::PriorTransform::Similarity, 0.2);
   std::vector<msk::ConstraintSet*> sets = sys.sets();
   sets.push_back(&prior);
-  msk::PbdSolver solver(msk::PbdOptions{});
+  msk::Solver solver(msk::SolverOptions{});
   const msk::Points start = perturbed(sys.mesh.positions, 0.5);
   solver.prepare(start, w);
   const double largest = run(solver, sets, 2 * steps);
@@ -264,7 +268,7 @@ TEST(ExtremeUnits, MetresAndMillimetresGiveTheSameRun) {
     msk::CollisionConstraints ab(0, na, msk::Triangles(msk::simplexFanTriangles(b).array() + na), 0.2 * unit, 1.0 * unit,
                                  0.0),
         ba(na, na, msk::simplexFanTriangles(a), 0.2 * unit, 1.0 * unit, 0.0);
-    msk::PbdSolver solver(msk::PbdOptions{});
+    msk::Solver solver(msk::SolverOptions{});
     solver.prepare(p, Eigen::VectorXd::Ones(2 * na));
     for (int step = 0; step < 20; ++step) {
       ab.detect(solver.positions(), step == 0);
@@ -362,7 +366,7 @@ TEST(ExtremeElements, SetsSkipDegenerateNeighbourhoodsAndStayFinite) {
   p.row(s.neighbors(v0, 1)) = 0.5 * (p.row(s.neighbors(v0, 0)) + p.row(s.neighbors(v0, 2)));
   p.row(s.neighbors(v1, 1)) = p.row(s.neighbors(v1, 0));
   p.row(s.neighbors(v1, 2)) = p.row(s.neighbors(v1, 0));
-  msk::PbdSolver solver(msk::PbdOptions{});
+  msk::Solver solver(msk::SolverOptions{});
   solver.prepare(p, w);
   c.project(p, w);
   EXPECT_GE(c.skipped(), 2);
@@ -382,7 +386,7 @@ TEST(ExtremeElements, SetsSkipDegenerateNeighbourhoodsAndStayFinite) {
   msk::Points pv = vm.simplex.positions;
   const int t = vm.tetCount() / 2;
   pv.row(t) = 2.0 * pv.row(vm.simplex.neighbors(t, 0)) - pv.row(t);
-  msk::PbdSolver vs(msk::PbdOptions{});
+  msk::Solver vs(msk::SolverOptions{});
   vs.prepare(pv, Eigen::VectorXd::Ones(vm.vertexCount()));
   EXPECT_LT(run(vs, {&vc}, 30), 5.0);
 }
@@ -397,7 +401,7 @@ TEST(ExtremeNaN, InjectedNaNIsDetectedAndNeverSpreads) {
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
   msk::Points bad = sys.mesh.positions;
   bad(5, 2) = std::numeric_limits<double>::quiet_NaN();
-  msk::PbdSolver solver(msk::PbdOptions{});
+  msk::Solver solver(msk::SolverOptions{});
   EXPECT_THROW(solver.prepare(bad, w), msk::Error);
   Eigen::VectorXd badW = w;
   badW[3] = std::numeric_limits<double>::quiet_NaN();
@@ -542,10 +546,10 @@ void momentumDrift(bool collide, double& angular, double& linear) {
       ba(na, na, msk::simplexFanTriangles(a), 0.5, 1.0, 0.0);
   std::vector<msk::ConstraintSet*> sets = {&ia, &ib};
   if (collide) sets.insert(sets.end(), {&ab, &ba});
-  msk::PbdOptions o;
+  msk::SolverOptions o;
   o.damping = 0;
   o.drag = 0;
-  msk::PbdSolver solver(o);
+  msk::Solver solver(o);
   solver.prepare(p, w);
   angular = linear = 0;
   Vec3 lPrev = Vec3::Zero();
@@ -668,7 +672,7 @@ TEST(ExtremeStability, MixedMassesKeepStepsBounded) {
   msk::ShapeMatchingConstraint prior(sys.mesh.positions, msk::PriorTransform::Similarity, 0.2);
   std::vector<msk::ConstraintSet*> sets = sys.sets();
   sets.push_back(&prior);
-  msk::PbdSolver solver(msk::PbdOptions{});
+  msk::Solver solver(msk::SolverOptions{});
   solver.prepare(perturbed(sys.mesh.positions, 0.5), w);
   EXPECT_LT(run(solver, sets, 60), 20.0);
 }

@@ -11,10 +11,11 @@
 
 #include <gtest/gtest.h>
 
-#include "msk/core/constraints.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/error.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/core/constraint_row.h"
 
 namespace {
 

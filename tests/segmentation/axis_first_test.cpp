@@ -9,6 +9,7 @@
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/scene.h"
+#include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
 #include "test_support.h"
 
@@ -109,8 +110,8 @@ TEST(AxisFirst, BentTubeIsReachedFromADisplacedStraightTemplate) {
     const Outcome plain = run(img, templ, truth, false, false);
     const Outcome axis = run(img, templ, truth, true, false);
     const Outcome first = run(img, templ, truth, true, true);
-    ASSERT_EQ(first.res.settings.axisFirst.size(), 1u);
-    const msk::AxisFirstReport& stage = first.res.settings.axisFirst[0];
+    ASSERT_EQ(first.res.axisFirst.size(), 1u);
+    const msk::AxisFirstReport& stage = first.res.axisFirst[0];
     std::printf("[          ] %9.1f  %11.1f | %13.3f %4.2f | %12.3f %4.2f | %9.3f %4.2f | %15.3f %4.2f (%d, %.3f)\n",
                 c.bendMm, c.offsetMm.norm(), start.dice, start.assd, plain.m.dice, plain.m.assd, axis.m.dice,
                 axis.m.assd, first.m.dice, first.m.assd, stage.steps, stage.seconds);
@@ -118,19 +119,19 @@ TEST(AxisFirst, BentTubeIsReachedFromADisplacedStraightTemplate) {
     // The stage ran, moved the axis to the image and is reported; the runs without it have no stage.
     EXPECT_EQ(stage.object, "tube");
     EXPECT_GT(stage.steps, 0);
-    EXPECT_LE(stage.steps, msk::SegmentOptions().axisFirstSteps);
+    EXPECT_LE(stage.steps, msk::SegmentOptions().axis.firstSteps);
     EXPECT_GT(stage.seconds, 0.0);
     EXPECT_GT(stage.meanAxisMoveMm, 1.0);
     EXPECT_EQ(first.res.secondsPerStage.count("axis-first"), 1u);
-    const msk::Json params = msk::settingsJson(msk::SegmentOptions(), first.res.settings);
-    const msk::Json* reported = params.find("axis_first_stage");
+    const msk::Json params = msk::settingsJson(msk::SegmentOptions(), first.res);
+    const msk::Json* reported = msk::jsonMember(params, "axis_first_stage");
     ASSERT_NE(reported, nullptr);
-    ASSERT_EQ(reported->asArray().size(), 1u);
-    EXPECT_EQ(reported->asArray()[0].find("steps")->asNumber(), stage.steps);
+    ASSERT_EQ(reported->size(), 1u);
+    EXPECT_EQ((*reported)[0].at("steps").get<double>(), stage.steps);
     for (const Outcome* o : {&plain, &axis}) {
-      EXPECT_TRUE(o->res.settings.axisFirst.empty());
+      EXPECT_TRUE(o->res.axisFirst.empty());
       EXPECT_EQ(o->res.secondsPerStage.count("axis-first"), 0u);
-      EXPECT_EQ(msk::settingsJson(msk::SegmentOptions(), o->res.settings).find("axis_first_stage"), nullptr);
+      EXPECT_EQ(msk::jsonMember(msk::settingsJson(msk::SegmentOptions(), o->res), "axis_first_stage"), nullptr);
     }
 
     if (c.bendMm == 0) {  // straight: as good as without the stage
@@ -156,25 +157,25 @@ TEST(AxisFirst, RunDefaultAppliesOnlyToAxisObjectsThatDoNotSay) {
   const msk::ImageF img = tubeImage(g, tube);
   const msk::TriangleMesh templ = tube.mesh(3);
   msk::SegmentOptions opts;
-  EXPECT_FALSE(opts.axisFirst);  // off unless asked: existing scenes keep their results
-  opts.axisFirst = true;
-  opts.levels = 1;
-  opts.maxStepsPerLevel = 3;
+  EXPECT_FALSE(opts.axis.first);  // off unless asked: existing scenes keep their results
+  opts.axis.first = true;
+  opts.evolution.levels = 1;
+  opts.evolution.maxStepsPerLevel = 3;
   msk::Scene unset = tubeScene(templ, true, false);
   unset.objects[0].model.axisFirst.reset();
-  EXPECT_EQ(msk::segmentScene(img, unset, opts).settings.axisFirst.size(), 1u);
-  EXPECT_TRUE(msk::segmentScene(img, tubeScene(templ, true, false), opts).settings.axisFirst.empty());
-  EXPECT_TRUE(msk::segmentScene(img, tubeScene(templ, false, false), opts).settings.axisFirst.empty());
-  EXPECT_TRUE(msk::segmentScene(img, unset, msk::SegmentOptions()).settings.axisFirst.empty());
+  EXPECT_EQ(msk::segmentScene(img, unset, opts).axisFirst.size(), 1u);
+  EXPECT_TRUE(msk::segmentScene(img, tubeScene(templ, true, false), opts).axisFirst.empty());
+  EXPECT_TRUE(msk::segmentScene(img, tubeScene(templ, false, false), opts).axisFirst.empty());
+  EXPECT_TRUE(msk::segmentScene(img, unset, msk::SegmentOptions()).axisFirst.empty());
 
   msk::SegmentOptions bad = opts;
-  bad.axisFirstSteps = -1;
+  bad.axis.firstSteps = -1;
   EXPECT_THROW(msk::segmentScene(img, unset, bad), msk::ParameterError);
   bad = opts;
-  bad.axisFirstStage.imageGain = 1.5;
+  bad.axis.firstStage.imageGain = 1.5;
   EXPECT_THROW(msk::segmentScene(img, unset, bad), msk::ParameterError);
   bad = opts;
-  bad.axisFirstStage.shapeMemory = -0.5;
+  bad.axis.firstStage.shapeMemory = -0.5;
   EXPECT_THROW(msk::segmentScene(img, unset, bad), msk::ParameterError);
 }
 
@@ -201,14 +202,14 @@ TEST(AxisFirst, StageBringsDisplacedThighMusclesBack) {
       o.model.axisFirst.reset();
       if (axis) o.model.axisFirst = axisFirst;
       const msk::SegmentationResult r = msk::segmentScene(img, s, opts);
-      if (steps) *steps = r.settings.axisFirst.empty() ? 0 : r.settings.axisFirst[0].steps;
+      if (steps) *steps = r.axisFirst.empty() ? 0 : r.axisFirst[0].steps;
       return msk::labelMetrics(r.labels, o.label, truth, o.label);
     };
     // One full step without image force: the template as it is, or as the stage left it.
     msk::SegmentOptions still;
-    still.levels = 1;
-    still.maxStepsPerLevel = 1;
-    still.imageStiffness = 0;
+    still.evolution.levels = 1;
+    still.evolution.maxStepsPerLevel = 1;
+    still.image.stiffness = 0;
     int steps = 0;
     const msk::SegmentationMetrics templ = metrics(false, false, still), stage = metrics(true, true, still);
     const msk::SegmentationMetrics plain = metrics(false, false, {}), axis = metrics(true, false, {}),

@@ -13,6 +13,7 @@
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/scene.h"
+#include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
 #include "test_support.h"
 
@@ -97,7 +98,7 @@ TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
     ASSERT_EQ(scene.collisions.size(), 6u);
     for (msk::CollisionPair& p : scene.collisions) p.mode = c.mode;
     msk::SegmentOptions opts;
-    opts.collisionResolution = c.resolution;  // no pair sets its own
+    opts.collision.resolution = c.resolution;  // no pair sets its own
     const msk::SegmentationResult res = msk::segmentScene(img, scene, opts);
     std::printf("%-30s overlap %zu voxels, deepest %.3f mm, Dice (default):", c.name, res.overlapVoxels,
                 *std::max_element(res.pairPenetrationMm.begin(), res.pairPenetrationMm.end()));
@@ -109,15 +110,15 @@ TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
     std::printf("  (%.1f s)\n", res.seconds);
     EXPECT_EQ(res.overlapVoxels, 0u) << c.name;
     for (double d : res.pairPenetrationMm) EXPECT_LE(d, 0.1) << c.name;
-    const msk::Json j = msk::settingsJson(opts, res.settings);
+    const msk::Json j = msk::settingsJson(opts, res);
     const msk::Json& modes = j.at("collision_mode");
-    ASSERT_TRUE(modes.isArray());
+    ASSERT_TRUE(modes.is_array());
     ASSERT_EQ(modes.size(), 6u);
-    for (const msk::Json& m : modes.asArray()) {
-      EXPECT_EQ(m.at("mode").asString(), msk::collisionModeName(c.mode));
-      EXPECT_EQ(m.at("target").asString(), "spring");
-      EXPECT_EQ(m.at("resolution").asString(), msk::collisionResolutionName(c.resolution));
+    for (const msk::Json& m : modes) {
+      EXPECT_EQ(m.at("mode").get<std::string>(), msk::collisionModeName(c.mode));
+      EXPECT_EQ(m.at("target").get<std::string>(), "spring");
+      EXPECT_EQ(m.at("resolution").get<std::string>(), msk::collisionResolutionName(c.resolution));
     }
-    EXPECT_EQ(modes.asArray()[0].at("objects").asArray()[0].asString(), "femur");
+    EXPECT_EQ(modes[0].at("objects")[0].get<std::string>(), "femur");
   }
 }

@@ -46,8 +46,8 @@ msk::Scene oneObject(const msk::TriangleMesh& templ) {
 /// Small, fast settings: `levels` levels, at most `steps` steps each.
 msk::SegmentOptions quick(int levels, int steps) {
   msk::SegmentOptions o;
-  o.levels = levels;
-  o.maxStepsPerLevel = steps;
+  o.evolution.levels = levels;
+  o.evolution.maxStepsPerLevel = steps;
   return o;
 }
 
@@ -66,7 +66,7 @@ double expectSane(const msk::SegmentationResult& res, const msk::SegmentOptions&
   const double largest = disp.maxCoeff();
   EXPECT_LE(largest, maxDisplacement) << what;
   for (const msk::LevelReport& l : ob.levels) {
-    EXPECT_TRUE(l.converged || l.steps == o.maxStepsPerLevel) << what;
+    EXPECT_TRUE(l.converged || l.steps == o.evolution.maxStepsPerLevel) << what;
     EXPECT_TRUE(std::isfinite(l.lastMaxMoveMm)) << what;
   }
   std::printf("[ %s ] %d vertices, displacement mean %.3f max %.3f mm, last level %d steps (%s), volume %.0f / %.0f mm3\n",
@@ -145,8 +145,8 @@ msk::TriangleMesh ballInUnits(double unit, int levels) {
   const Eigen::Vector3d c = Eigen::Vector3d(0.3, -0.2, 0.1) * unit;
   const msk::ImageF img = ballImage(g, c, 10.0 * unit, 200.f, 800.f);
   msk::SegmentOptions o = quick(levels, 25);
-  o.edgePenalty = 0;
-  o.rangeCoarseExtraMm *= unit;
+  o.image.edgePenalty = 0;
+  o.image.rangeCoarseExtraMm *= unit;
   const msk::SegmentationResult res = msk::segmentScene(img, oneObject(msk::makeIcosphere(8.0 * unit, 3, c)), o);
   msk::TriangleMesh m = res.objects.at(0).mesh;
   m.vertices /= unit;

@@ -8,7 +8,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
-#include "msk/segmentation/phantom.h"
+#include "msk/phantom/phantom.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
 
@@ -101,7 +101,7 @@ TEST(FemurPhantom, PresetsGainAccuracyFromFastToAccurate) {
     double assd[3];
     for (int q = 0; q < 3; ++q) {
       msk::SegmentOptions o;
-      o.quality = presets[q];
+      o.evolution.quality = presets[q];
       assd[q] = msk::meshMetrics(msk::segmentScene(image, scene, o).objects[0].mesh, truth).assd;
       mean[q] += assd[q];
     }

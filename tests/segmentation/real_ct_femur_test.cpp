@@ -39,9 +39,9 @@ msk::SceneObject mirroredBone(const msk::LabelMap& labels, const char* name, int
 /// edges (segmenter.h, SegmentOptions::refinePass).
 msk::SegmentOptions femurOptions(bool refine = true) {
   msk::SegmentOptions opts;
-  opts.priorEnd = 0.2;
-  opts.rangeFine = 1.0;
-  opts.refinePass = refine;
+  opts.shape.priorEnd = 0.2;
+  opts.image.rangeFine = 1.0;
+  opts.image.refinePass = refine;
   return opts;
 }
 }  // namespace

@@ -362,9 +362,9 @@ RealScene ctScene(const std::string& data, double displacementMm = kDisplacement
 SceneScore runCtScene(RealScene& rs) {
   rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // the bones
   msk::SegmentOptions opts;
-  opts.priorEnd = 0.2;
-  opts.rangeFine = 1.0;
-  opts.sigmaFine = 1.0;
+  opts.shape.priorEnd = 0.2;
+  opts.image.rangeFine = 1.0;
+  opts.image.sigmaFine = 1.0;
   return runScene(rs, opts);
 }
 
@@ -380,7 +380,7 @@ TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
   const RealScene rs = mrScene(data);
   msk::SegmentOptions opts;
-  opts.priorEnd = 0.3;
+  opts.shape.priorEnd = 0.3;
   const SceneScore sc = runScene(rs, opts);
   printScore("totalseg-mr: autochthon muscles with the vertebrae", rs, sc);
   ASSERT_GE(sc.objects.size(), 3u);  // two muscles and at least one vertebra
@@ -477,10 +477,10 @@ TEST(RealScenes, CtGluteusMediusFromItsOwnLabelLosesToTheImage) {
       }
     rs.scene.objects[0].model.refine = rs.scene.objects[1].model.refine = true;  // as runCtScene()
     msk::SegmentOptions opts;
-    opts.priorEnd = 0.2;
-    opts.rangeFine = 1.0;
-    opts.sigmaFine = 1.0;
-    opts.edgeLevel = gradient;
+    opts.shape.priorEnd = 0.2;
+    opts.image.rangeFine = 1.0;
+    opts.image.sigmaFine = 1.0;
+    opts.image.edgeLevel = gradient;
     const SceneScore sc = runScene(rs, opts);
     printScore(gradient ? "totalseg-ct, templates from the right side's own labels, gradient force with the edge level"
                         : "totalseg-ct, templates from the right side's own labels, profiles learned on the left side",

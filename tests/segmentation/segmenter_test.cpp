@@ -1,4 +1,5 @@
 // Property tests of the segmentation pipeline on synthetic images with known answers.
+#include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
 
 #include <cmath>
@@ -94,8 +95,8 @@ TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
   for (double gamma : {0.0, 1e-12, 1.0}) {
     for (double image : {0.0, 1.0}) {
       msk::SegmentOptions opts;
-      opts.internalStiffness = gamma;
-      opts.imageStiffness = image;
+      opts.shape.internalStiffness = gamma;
+      opts.image.stiffness = image;
       const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(16.0, 3, c)), opts);
       const msk::TriangleMesh& m = res.objects[0].mesh;
       ASSERT_TRUE(m.vertices.allFinite());
@@ -114,13 +115,13 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   msk::ImageF img(g, 1.f);
   const msk::Scene s = oneObjectScene(msk::makeIcosphere(5, 2));
   msk::SegmentOptions bad;
-  bad.internalStiffness = 1.5;
+  bad.shape.internalStiffness = 1.5;
   EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
   bad = {};
-  bad.pbd.dt = -1;
+  bad.evolution.dt = -1;
   EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
   bad = {};
-  bad.muscleTargetStepEdges = -1;
+  bad.image.muscleTargetStepEdges = -1;
   EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
   img.data[5] = NAN;
   EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
@@ -145,7 +146,7 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
                               {msk::Quality::Accurate, 3, 200, 0.004, msk::Scheme::Xpbd, 2, 2, 0.25}};
   for (const Expected& e : presets) {
     msk::SegmentOptions o;
-    o.quality = e.q;
+    o.evolution.quality = e.q;
     const msk::ResolvedSettings s = msk::resolveSettings(o, g);
     EXPECT_EQ(s.levels, e.levels) << msk::qualityName(e.q);
     EXPECT_EQ(s.maxStepsPerLevel, e.steps) << msk::qualityName(e.q);
@@ -155,25 +156,27 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
     EXPECT_EQ(s.solver.iterations, e.iterations) << msk::qualityName(e.q);
     EXPECT_EQ(s.sigmaMm.size(), static_cast<size_t>(e.levels));
     EXPECT_DOUBLE_EQ(s.sigmaMm.back(), e.sigmaFine * 1.0) << msk::qualityName(e.q);
-    const msk::Json j = msk::settingsJson(o, s);
-    EXPECT_DOUBLE_EQ(j.at("sigma_fine_voxels").asNumber(), e.sigmaFine);
-    EXPECT_EQ(j.at("scheme").asString(), msk::schemeName(e.scheme));
-    EXPECT_EQ(j.at("substeps").asInt(), e.substeps);
-    EXPECT_EQ(j.at("iterations").asInt(), e.iterations);
-    EXPECT_EQ(j.at("threads").asInt(), 1);
+    msk::SegmentationResult r;
+    r.settings = s;
+    const msk::Json j = msk::settingsJson(o, r);
+    EXPECT_DOUBLE_EQ(j.at("sigma_fine_voxels").get<double>(), e.sigmaFine);
+    EXPECT_EQ(j.at("scheme").get<std::string>(), msk::schemeName(e.scheme));
+    EXPECT_EQ(j.at("substeps").get<int>(), e.substeps);
+    EXPECT_EQ(j.at("iterations").get<int>(), e.iterations);
+    EXPECT_EQ(j.at("threads").get<int>(), 1);
   }
   // XPBD in mass-relative units, k = 4.
   msk::SegmentOptions o;
-  o.quality = msk::Quality::Accurate;
+  o.evolution.quality = msk::Quality::Accurate;
   EXPECT_EQ(msk::resolveSettings(o, g).solver.xpbdStiffness, msk::XpbdStiffness::MassRelative);
   EXPECT_DOUBLE_EQ(msk::resolveSettings(o, g).solver.stiffness, 4.0);
   // Explicit settings win over the preset.
-  o.scheme = msk::Scheme::Implicit;
-  o.substeps = 3;
-  o.iterations = 5;
-  o.threads = 2;
-  o.levels = 2;
-  o.sigmaFine = 0.7;
+  o.evolution.scheme = msk::Scheme::Implicit;
+  o.evolution.substeps = 3;
+  o.evolution.iterations = 5;
+  o.evolution.threads = 2;
+  o.evolution.levels = 2;
+  o.image.sigmaFine = 0.7;
   const msk::ResolvedSettings s = msk::resolveSettings(o, g);
   EXPECT_DOUBLE_EQ(s.sigmaMm.back(), 0.7);
   EXPECT_EQ(s.solver.scheme, msk::Scheme::Implicit);
@@ -184,30 +187,32 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
   EXPECT_EQ(s.maxStepsPerLevel, 200);
   // Another scheme than the preset's brings the substeps × iterations it needs.
   msk::SegmentOptions other;
-  other.scheme = msk::Scheme::Explicit;
+  other.evolution.scheme = msk::Scheme::Explicit;
   EXPECT_EQ(msk::resolveSettings(other, g).solver.substeps, 4);
-  other.scheme = msk::Scheme::Jacobi;
+  other.evolution.scheme = msk::Scheme::Jacobi;
   EXPECT_EQ(msk::resolveSettings(other, g).solver.iterations, 2);
   EXPECT_DOUBLE_EQ(msk::resolveSettings(other, g).solver.omega, 1.5);
-  // The old PbdOptions still count: iterations from pbd when not set, dt/damping/drag always.
-  msk::SegmentOptions legacy;
-  legacy.pbd.iterations = 3;
-  legacy.pbd.drag = 0.25;
-  EXPECT_EQ(msk::resolveSettings(legacy, g).solver.iterations, 3);
-  EXPECT_DOUBLE_EQ(msk::resolveSettings(legacy, g).solver.drag, 0.25);
+  // Time step, damping and drag reach the solver whatever the scheme.
+  msk::SegmentOptions damped;
+  damped.evolution.drag = 0.25;
+  damped.evolution.damping = 0.75;
+  damped.evolution.dt = 2.0;
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(damped, g).solver.drag, 0.25);
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(damped, g).solver.damping, 0.75);
+  EXPECT_DOUBLE_EQ(msk::resolveSettings(damped, g).solver.dt, 2.0);
   // Bad scheme settings are refused before any work.
   const msk::Grid cube = cubeGrid(2.0, 10);
   const msk::ImageF img(cube, 1.f);
   const msk::Scene scene = oneObjectScene(msk::makeIcosphere(5, 2));
   msk::SegmentOptions bad;
-  bad.threads = -1;
+  bad.evolution.threads = -1;
   EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
   bad = {};
-  bad.jacobiOmega = 2.5;
-  bad.scheme = msk::Scheme::Jacobi;
+  bad.evolution.jacobiOmega = 2.5;
+  bad.evolution.scheme = msk::Scheme::Jacobi;
   EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
   bad = {};
-  bad.xpbdStiffness = -1;
+  bad.evolution.xpbdStiffness = -1;
   EXPECT_THROW(msk::segmentScene(img, scene, bad), msk::ParameterError);
 }
 
@@ -259,7 +264,7 @@ TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   pair.b = 1;
   scene.collisions.push_back(pair);
   msk::SegmentOptions one, two;
-  two.threads = 2;
+  two.evolution.threads = 2;
   const msk::SegmentationResult a = msk::segmentScene(img, scene, one), b = msk::segmentScene(img, scene, two);
   ASSERT_EQ(a.collisionSetsBuilt, 2 * a.settings.levels);
   for (size_t i = 0; i < 2; ++i) EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);

@@ -12,7 +12,7 @@
 
 #include "msk/core/collision_surface.h"
 #include "msk/segmentation/metrics.h"
-#include "msk/segmentation/phantom.h"
+#include "msk/phantom/phantom.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
 
@@ -23,35 +23,6 @@ struct Case {
   Eigen::Vector3d spacing, oblique;
 };
 
-/// The scene of a phantom: its objects with their mean-anatomy templates, and its touching pairs.
-msk::Scene phantomScene(const msk::Phantom& p) {
-  msk::Scene scene;
-  for (const msk::PhantomObject& o : p.objects) {
-    msk::SceneObject so;
-    so.name = o.name;
-    so.label = o.label;
-    so.kind = o.kind == "bone" ? msk::ObjectKind::Bone : o.kind == "muscle" ? msk::ObjectKind::Muscle : msk::ObjectKind::Generic;
-    so.templ = o.templ;
-    so.model = msk::defaultModel(so.kind);
-    scene.objects.push_back(so);
-  }
-  auto indexOf = [&](const std::string& name) {
-    for (size_t i = 0; i < scene.objects.size(); ++i)
-      if (scene.objects[i].name == name) return static_cast<int>(i);
-    return -1;
-  };
-  for (size_t i = 0; i < p.objects.size(); ++i)
-    for (const std::string& other : p.objects[i].touching) {
-      const int j = indexOf(other);
-      if (j > static_cast<int>(i)) {
-        msk::CollisionPair pair;
-        pair.a = static_cast<int>(i);
-        pair.b = j;
-        scene.collisions.push_back(pair);
-      }
-    }
-  return scene;
-}
 
 /// Tissue class at the voxel nearest to a world point (Air outside the grid).
 int tissueAt(const msk::Phantom& p, const Eigen::Vector3d& x) {
@@ -95,7 +66,7 @@ TEST(ThighSceneSeeds, FiveMoreSeedsIncludingObliqueAndAnisotropicGrids) {
     o.spacing = c.spacing;
     o.obliqueDegrees = c.oblique;
     const msk::Phantom p = msk::makePhantom(o);
-    const msk::Scene scene = phantomScene(p);
+    const msk::Scene scene = msk::phantomScene(p);
     ASSERT_EQ(scene.objects.size(), 4u);
     ASSERT_GE(scene.collisions.size(), 5u);
     const msk::SegmentationResult res = msk::segmentScene(p.image, scene, msk::SegmentOptions{});

@@ -25,9 +25,9 @@ SceneRun segment(bool collisions, bool remeshMuscles = true, bool unfold = true)
   const msk::Scene scene = msk::loadScene(kSample + "/scene.json");
   const msk::LabelMap truth = msk::readNifti<int32_t>(kSample + "/labels.nii.gz");
   msk::SegmentOptions opts;
-  opts.collisions = collisions;
-  opts.remeshTemplates = remeshMuscles;
-  opts.unfoldSurfaces = unfold;
+  opts.collision.enabled = collisions;
+  opts.surface.remeshTemplates = remeshMuscles;
+  opts.surface.unfoldSurfaces = unfold;
   SceneRun r;
   r.res = msk::segmentScene(img, scene, opts);
   for (int l = 1; l <= 4; ++l) {

@@ -6,7 +6,7 @@
 
 #include <Eigen/Core>
 
-#include "msk/core/constraints.h"
+#include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"
 
@@ -75,12 +75,17 @@ Eigen::VectorXd axisInverseMass(const RadialAttachment& attachment, int axisVert
 
 // ------------------------------------------------------------------------------------------------ kernel
 
-/// Radial constraint, "radius method" (thesis seed §4 radial constraint; DESIGN-NOTES §2 interaction and §4): with
-/// Q̄ = Σ cj Qj and goal G = r̃·(Q̄ − P)/|Q̄ − P|, the constraint C = G − (Q̄ − P) is removed by ΔP = −γ m̄ w C and
-/// ΔQj = γ m̄ cj wj C, reduced mass m̄ = (w + Σ cj² wj)⁻¹ (as collisionCorrection), so Q̄ − P changes by exactly γC and
-/// linear momentum is conserved when Σ cj = 1. Positions and r̃ in mm, cj the attachment weights, w and wj inverse
-/// masses (0 = fixed), γ ∈ [0, 1]. Writes ΔP, ΔQj; returns false on degenerate input (|Q̄ − P| ≤ 1e-9 mm, every
-/// particle fixed, r̃ < 0, γ outside [0, 1], anything non-finite), leaving the outputs untouched.
+/// Radial constraint, "radius method" (thesis seed §4 radial constraint; DESIGN-NOTES §2 interaction and §4), as a row
+/// over (P, Q0, Q1) (indices 0..2): with Q̄ = Σ cj Qj and goal G = r̃·(Q̄ − P)/|Q̄ − P|, C = G − (Q̄ − P) (the goal
+/// direction held constant), g = r = (1, −c0, −c1), γ. The PBD step ΔP = −γ m̄ w C, ΔQj = γ m̄ cj wj C with the reduced
+/// mass m̄ = (w + Σ cj² wj)⁻¹ changes Q̄ − P by exactly γC and conserves linear momentum when Σ cj = 1. Positions and
+/// r̃ in mm, cj the attachment weights. Returns false on degenerate input (|Q̄ − P| ≤ 1e-9 mm, r̃ < 0, anything
+/// non-finite).
+bool radialRow(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], const double weights[2], double radiusMm,
+               double gamma, ConstraintRow& row);
+
+/// The position-based correction of radialRow() for inverse masses w (P) and wq (Q0, Q1): ΔP into `dp`, ΔQj into
+/// `dq`. Returns false if the row is degenerate, every particle is fixed, or γ is outside [0, 1].
 bool radialCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], const double weights[2], double radiusMm,
                       double w, const double wq[2], double gamma, Eigen::Vector3d& dp, Eigen::Vector3d dq[2]);
 
@@ -97,8 +102,7 @@ class RadialConstraints : public ConstraintSet {
   /// negative firstAxisParticle).
   RadialConstraints(const RadialAttachment& attachment, int firstAxisParticle, double gamma);
   std::string name() const override { return "radial"; }
-  void project(Points& p, const Eigen::VectorXd& w) override;
-  /// One row per surface vertex (solver.h): C = G − (Q̄ − P), g = r = (1, −c0, −c1) for (P, Q0, Q1).
+  /// One row per surface vertex (radialRow()), over its particle and its two axis particles.
   int rowCount() const override { return att_.vertexCount(); }
   int rowParticles(int r, int index[kMaxRowParticles]) const override;
   bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
@@ -112,15 +116,13 @@ class RadialConstraints : public ConstraintSet {
   void setFirstAxisParticle(int first);
   /// The attachment in use.
   const RadialAttachment& attachment() const { return att_; }
-  /// Number of projections skipped as degenerate in the last pass.
-  int skipped() const { return skipped_; }
+  void beginRows(const Points& p, const Eigen::VectorXd& w) override;
 
  private:
   RadialAttachment att_;
   int firstAxis_;
   double gamma_;
   int axisCount_ = 0;
-  int skipped_ = 0;
 };
 
 /// Re-centres an axis on its surface ("otherwise the average of their attached surface vertices", DESIGN-NOTES §4):

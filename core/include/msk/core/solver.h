@@ -3,26 +3,21 @@
 /// (sequential or graph-coloured Gauss–Seidel, weighted-sum Jacobi, XPBD) and force-based (explicit symplectic Euler,
 /// implicit Euler solved by conjugate gradient). Switch scheme by changing SolverOptions only:
 ///
-///   SolverOptions o = SolverOptions::fromPbd(pbd);   // dt, iterations, damping, drag as before
-///   o.scheme = parseScheme("xpbd");                  // or Scheme::Xpbd
+///   SolverOptions o;
+///   o.scheme = parseScheme("xpbd");   // or Scheme::Xpbd
 ///   Solver solver(o);
 ///   solver.prepare(x, invMass);
-///   solver.step(sets);                               // as PbdSolver::step
+///   solver.step(sets);
 ///
-/// Measured settings (bundled femur phantom, tests/core/solver_schemes_test.cpp figures; see the issue-5 report):
-/// Gauss–Seidel 1 substep × 1 iteration is the reference; XPBD with XpbdStiffness::MassRelative, k = 4, 2 substeps ×
-/// 2 iterations reached the same or better Dice/ASSD in fewer steps; coloured Gauss–Seidel gives identical results
-/// for any thread count; Jacobi (ω = 1.5) and the force-based schemes (explicit: ≥ 4 substeps) converge to the same
-/// answer on consistent problems but need more steps.
-///
-/// Sets that expose rows (ConstraintRow: 2-simplex internal, image targets, global prior, radial, 3-simplex) run in
-/// every form; a set without rows (collisions) is projected with ConstraintSet::project() by the Gauss–Seidel and
-/// XPBD schemes, and by Jacobi and the force-based ones as SolverOptions::rowless says. Every scheme calls each set's
-/// velocity passes: ConstraintSet::correctBeforePrediction() at the start of every substep, and
-/// ConstraintSet::correctVelocities() after the velocity update of every substep (after the damping on a step's last
-/// substep), which is where collision response in acceleration and velocity mode acts (collision_response.h). How a
-/// collision pair's contacts are resolved (sequential or global conjugate gradient) belongs to its constraint sets
-/// (CollisionConstraints, GlobalCollisionResolution), not to the scheme.
+/// Every set's constraints are rows (ConstraintRow): image targets, 2-simplex internal, global prior, radial,
+/// 3-simplex and collision contacts alike. Sequential Gauss–Seidel runs each set's project() (its rows in order); the
+/// coloured, Jacobi and XPBD schemes run the rows colour by colour or summed, the force-based ones turn them into forces
+/// with their derivatives. A set without rows (axis centring, volume preservation, global contact resolution) is run
+/// through project() by the position-based schemes, and by Jacobi and the force-based ones as SolverOptions::rowless
+/// says. Every scheme calls each set's velocity passes: ConstraintSet::correctBeforePrediction() at the start of every
+/// substep, and ConstraintSet::correctVelocities() after the velocity update of every substep (after the damping on a
+/// step's last substep), which is where collision response in acceleration and velocity mode acts
+/// (collision_response.h).
 #include <map>
 #include <memory>
 #include <string>
@@ -30,14 +25,13 @@
 
 #include <Eigen/Core>
 
-#include "msk/core/constraints.h"
-#include "msk/core/pbd_solver.h"
+#include "msk/core/constraint_set.h"
 
 namespace msk {
 
 /// Evolution scheme.
 enum class Scheme {
-  GaussSeidel,          ///< "gauss-seidel": PBD, every set projected in its own sequential order (= PbdSolver)
+  GaussSeidel,          ///< "gauss-seidel": PBD, every set projected in its own sequential order
   ColouredGaussSeidel,  ///< "coloured-gauss-seidel": PBD, rows colour by colour (parallel, thread-count independent)
   Jacobi,               ///< "jacobi": PBD, weighted sum of all rows' corrections at the same positions, relaxation ω
   Xpbd,                 ///< "xpbd": extended PBD, compliance α̃ = 1/(k γ dt²), multipliers reset every substep
@@ -53,7 +47,7 @@ Scheme parseScheme(const std::string& name);
 /// Every scheme, in declaration order.
 std::vector<Scheme> allSchemes();
 
-/// How Jacobi and the force-based schemes treat a set without rows (collisions).
+/// How Jacobi and the force-based schemes treat a set without rows.
 enum class RowlessSets {
   Project,  ///< projected in order on the positions after each Jacobi iteration or force-based substep, the
             ///< velocities following the correction (collision response by position correction, DESIGN-NOTES §3)
@@ -69,7 +63,7 @@ enum class XpbdStiffness {
                 ///< and no mass or time scale enters
 };
 
-/// Settings of Solver (user input). dt, iterations, damping and drag mean what they mean in PbdOptions.
+/// Settings of Solver (user input).
 struct SolverOptions {
   Scheme scheme = Scheme::GaussSeidel;  ///< evolution scheme
   double dt = 1.0;           ///< time step of one step() (> 0); with α = γ m̄ dt⁻² it cancels from PBD corrections
@@ -79,6 +73,7 @@ struct SolverOptions {
   double drag = 0.5;         ///< ∈ [0, 1]: share of the remaining velocity removed per step (1 = quasi-static)
   double omega = 1.0;        ///< Jacobi relaxation ω ∈ (0, 2): scales every averaged correction
   double stiffness = 1.0;    ///< XPBD stiffness k ≥ 0 (see xpbdStiffness; +inf = hard, 0 = off), times each row's γ
+                             ///< (rows that are not ConstraintRow::compliant are always hard)
   XpbdStiffness xpbdStiffness = XpbdStiffness::Absolute;  ///< unit of `stiffness`
   double forceDamping = 1.0; ///< force-based: damping ratio ζ ≥ 0 of the projected damping F = −β (v·F̂) F̂, β = 2ζ√(α m̄)
   double anisotropy = 0.9;   ///< force-based: k ∈ [0, 1] of direction targets, ∂F/∂P ≈ −α (k I + (1 − k) uuᵀ)
@@ -89,9 +84,6 @@ struct SolverOptions {
   bool batchKernels = true;  ///< coloured Gauss–Seidel (PBD) and Jacobi run a set's batch kernel where it has one
                              ///< (2-simplex internal, shape memory: SimplexInternalConstraints::batch()), which gives
                              ///< its rows' corrections up to rounding several rows at a time; false: row by row
-
-  /// The position-based Gauss–Seidel scheme with the settings of `pbd` (what PbdSolver runs).
-  static SolverOptions fromPbd(const PbdOptions& pbd);
 };
 
 /// Checks every field (ParameterError naming the field: dt ≤ 0 or non-finite, substeps/iterations/cgIterations < 1,
@@ -99,7 +91,7 @@ struct SolverOptions {
 /// cgTolerance ≤ 0, threads < 0).
 void validateSolverOptions(const SolverOptions& opts);
 
-/// Runs one scheme on one particle system (several objects stacked); same interface as PbdSolver.
+/// Runs one scheme on one particle system (several objects stacked).
 class Solver {
  public:
   /// Validates the options (validateSolverOptions()).

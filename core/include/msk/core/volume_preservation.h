@@ -17,7 +17,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
-#include "msk/core/constraints.h"
+#include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
 
 namespace msk {

@@ -16,9 +16,11 @@
 /// displacements over as targets).
 #include <string>
 
+#include <vector>
+
 #include <Eigen/Core>
 
-#include "msk/core/constraints.h"
+#include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"
 
@@ -128,11 +130,16 @@ Points relaxVolumeSimplexTets(const VolumeSimplexMesh& model, const Points& posi
 /// nodes tetsFromVolumeSimplex() recovers (the primal volume, not the volume of the dual cells).
 double volumeSimplexVolume(const VolumeSimplexMesh& model, const Points& positions);
 
-/// 3-simplex internal constraint (thesis seed Table 4.25, DESIGN-NOTES §2): C = Σ ε̃i Pi − P, F_P = αC,
-/// F_Pi = −α ε̃i C with α = γ m̄ dt⁻² and reduced mass m̄ = (w + Σ ε̃i² wi)⁻¹; as a position correction (ΔPi = wi Fi
-/// dt²) ΔP = γ w m̄ C, ΔPi = −γ wi ε̃i m̄ C, so a full step (γ = 1) satisfies C = 0 exactly. Linear and angular
-/// momentum are conserved (Σ ε̃i = 1). Lengths in mm, w inverse masses (0 = fixed), γ ∈ [0, 1]. Returns false on
-/// degenerate input (every particle fixed, Σ ε̃i ≠ 1, non-finite values), leaving the outputs untouched.
+/// 3-simplex internal constraint (thesis seed Table 4.25, DESIGN-NOTES §2) as a row over (P, P1..P4) (indices 0..4):
+/// C = Σ ε̃i Pi − P, g = r = (−1, ε̃i), γ; forces F_P = αC, F_Pi = −α ε̃i C with α = γ m̄ dt⁻², reduced mass
+/// m̄ = (w + Σ ε̃i² wi)⁻¹; as a position correction ΔP = γ w m̄ C, ΔPi = −γ wi ε̃i m̄ C, so a full step (γ = 1)
+/// satisfies C = 0 exactly. Linear and angular momentum are conserved (Σ ε̃i = 1). Lengths in mm. Returns false if
+/// Σ ε̃i ≠ 1 or C is not finite.
+bool volumeSimplexRow(const Eigen::Vector3d& p, const Eigen::Vector3d pi[4], const double eps[4], double gamma,
+                      ConstraintRow& row);
+
+/// The position-based correction of volumeSimplexRow() for inverse masses w (P) and wi: ΔP into `dp`, ΔPi into
+/// `dpi`. Returns false on degenerate input (every particle fixed, Σ ε̃i ≠ 1, non-finite values).
 bool volumeSimplexCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[4], double w, const double wi[4],
                              const double eps[4], double gamma, Eigen::Vector3d& dp, Eigen::Vector3d dpi[4]);
 
@@ -142,30 +149,28 @@ enum class VolumeBoundary {
   Constrained     ///< tets and ghosts (a volume model without a surface model)
 };
 
-/// 3-simplex internal constraints of a volume model: one per vertex, Gauss–Seidel in vertex order, reference ε̃ of
-/// the model. Particle first + v is simplex vertex v (tets, then ghosts).
+/// 3-simplex internal constraints of a volume model: one row per constrained vertex (volumeSimplexRow()), in vertex
+/// order, reference ε̃ of the model. Particle first + v is simplex vertex v (tets, then ghosts).
 class VolumeSimplexConstraints : public ConstraintSet {
  public:
   /// Records the neighbour table and ε̃ of `model`. γ ∈ [0, 1] (throws ParameterError otherwise).
   VolumeSimplexConstraints(const VolumeSimplexMesh& model, double gamma,
                            VolumeBoundary boundary = VolumeBoundary::SurfaceDriven);
   std::string name() const override { return "volume-simplex"; }
-  void project(Points& p, const Eigen::VectorXd& w) override;
-  /// One row per vertex (solver.h): C = Σ ε̃i Pi − P, g = r = (−1, ε̃i); inactive vertices give no row.
-  int rowCount() const override { return static_cast<int>(nb_.rows()); }
+  /// One row per constrained vertex: the tets (and with VolumeBoundary::Constrained the ghosts) but for those marked
+  /// degenerate = 2.
+  int rowCount() const override { return static_cast<int>(rows_.size()); }
   int rowParticles(int r, int index[kMaxRowParticles]) const override;
+  void beginRows(const Points& p, const Eigen::VectorXd& w) override;
   bool row(int r, const Points& p, const Eigen::VectorXd& w, ConstraintRow& out) const override;
   /// User stiffness γ.
   double gamma() const { return gamma_; }
-  /// Number of projections skipped as degenerate in the last pass (degenerate = 2 vertices excluded).
-  int skipped() const { return skipped_; }
 
  private:
   NeighborTable nb_;
   Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> eps_;
-  Eigen::VectorXi active_;
+  std::vector<int> rows_;  ///< the constrained vertices, in vertex order
   double gamma_;
-  int skipped_ = 0;
 };
 
 }  // namespace msk

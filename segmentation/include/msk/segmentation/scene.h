@@ -7,8 +7,9 @@
 #include <vector>
 
 #include "msk/core/collision_response.h"
-#include "msk/core/constraints.h"
-#include "msk/core/json.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/simplex_internal_constraint.h"
+#include "msk/imaging/json.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/segmentation/image_forces.h"
 
@@ -90,12 +91,23 @@ struct CollisionPair {
   bool fromAuto = false;     ///< found by an "auto" entry (templates within its distance), not declared by name
 };
 
+/// The "auto" entry of a scene's collisions: every pair of objects whose templates come within `withinMm` of each
+/// other (or overlap), with the pair parameters of `parameters` (its object indices unused).
+struct AutoCollisions {
+  double withinMm = 2.0;     ///< "within_mm", ≥ 0
+  CollisionPair parameters;  ///< "gap_mm", "proximity_mm", "friction", "mode", "target", "resolution"
+};
+
 /// A scene: objects and declared collision pairs (indices into objects).
 struct Scene {
   std::string path;                               ///< the scene file
   std::vector<SceneObject> objects;               ///< in file order
   std::vector<CollisionPair> collisions;          ///< declared pairs in file order, then auto pairs; no duplicates
-  Json metadata;                                  ///< the optional "phantom"/"description" entries, kept as given
+  std::optional<AutoCollisions> autoCollisions;   ///< the "auto" entry, if the scene has one
+  std::string description;                        ///< "description": free text (optional)
+  /// "provenance": what made the scene (a generator's name and parameters, source files), kept as given; null if
+  /// absent, else a JSON object.
+  Json provenance;
 };
 
 /// Maps template points and their outward normals to where `obj` learns its profiles (obj.profileSource; unchanged if
@@ -117,5 +129,14 @@ Scene loadScene(const std::string& path);
 
 /// Parses a scene from JSON text already read (`path` used for messages and relative template paths).
 Scene parseScene(const Json& json, const std::string& path);
+
+/// The scene as scene.json holds it, the inverse of parseScene(): each object's name, label, kind, template path
+/// (relative to `folder`, the folder the file will be in, where the template lies below it), its polarity and force
+/// if set, its "model" keys where they differ from defaultModel(kind), its "profiles_from" matrix; the pairs declared
+/// by name and the "auto" entry; description and provenance.
+Json sceneJson(const Scene& scene, const std::string& folder);
+
+/// Writes sceneJson(scene, the folder of `path`) to `path` atomically.
+void writeScene(const Scene& scene, const std::string& path);
 
 }  // namespace msk

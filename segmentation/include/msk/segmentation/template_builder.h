@@ -20,6 +20,9 @@ struct TemplateOptions {
   bool preserveVolume = true;
 };
 
+/// Throws ParameterError, naming the command-line option (--vertices, --smooth), for options out of range.
+void checkTemplateOptions(const TemplateOptions& opts);
+
 /// What templateFromLabels() did (for reports).
 struct TemplateReport {
   double sigmaMm = 0;            ///< Gaussian sigma used

@@ -1,0 +1,217 @@
+// One object's model across levels: its template's resolution levels (remeshed and tetrahedralised where its model
+// asks), its polarity, and the constraint sets it gets at each level.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "msk/core/error.h"
+#include "msk/imaging/surface_extraction.h"
+#include "msk/segmentation/surface_quality.h"
+#include "msk/segmentation/tetrahedralize.h"
+#include "segment_stages.h"
+
+namespace msk::detail {
+
+const ImageFeatures& FeatureCache::at(double sigmaMm) {
+  const long key = std::lround(sigmaMm * 1000.0);
+  auto it = cache_.find(key);
+  if (it == cache_.end()) {
+    const auto t0 = Clock::now();
+    it = cache_.emplace(key, computeImageFeatures(image_, sigmaMm)).first;
+    seconds_ += since(t0);
+  }
+  return it->second;
+}
+
+double defaultProximityMm(const SegmentOptions& opts, const Grid& grid) {
+  const double run = opts.collision.proximityMm;
+  return run > 0 ? run : std::max(1.0, 0.5 * grid.spacing.maxCoeff());
+}
+
+std::vector<PairContact> pairContacts(const Scene& scene, const SegmentOptions& opts, const Grid& grid) {
+  const CollisionOptions& c = opts.collision;
+  const double proximity = defaultProximityMm(opts, grid);
+  std::vector<PairContact> out;
+  for (const CollisionPair& p : scene.collisions) {
+    PairContact k;
+    k.gapMm = p.gapMm >= 0 ? p.gapMm : c.gapMm;
+    k.proximityMm = p.proximityMm > 0 ? p.proximityMm : proximity;
+    k.friction = p.friction >= 0 ? p.friction : c.friction;
+    // Table 4.23: mode and target from the scene; resolution from the scene or the run.
+    k.response = CollisionResponse{p.mode, p.target, p.resolution.value_or(c.resolution), c.positionBeyondMm};
+    out.push_back(k);
+  }
+  return out;
+}
+
+std::vector<ConstraintSet*> ObjectState::sets() const {
+  std::vector<ConstraintSet*> out;
+  for (ConstraintSet* c : {static_cast<ConstraintSet*>(targets.get()), static_cast<ConstraintSet*>(internal.get()),
+                           static_cast<ConstraintSet*>(prior.get()), static_cast<ConstraintSet*>(radial.get()),
+                           static_cast<ConstraintSet*>(centering.get()), static_cast<ConstraintSet*>(volumeSet.get()),
+                           static_cast<ConstraintSet*>(volumeHold.get())})
+    if (c) out.push_back(c);
+  return out;
+}
+
+Points ObjectState::bentByStage(const Points& templ) const {
+  if (stageAxis.rows() == 0) return templ;
+  return GeneralisedCylinder(templ, stageAxisRef, attachToAxis(templ, stageAxisRef)).surface(stageAxis);
+}
+
+void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features) {
+  const SceneObject& obj = *st.obj;
+  st.out.name = obj.name;
+  st.out.label = obj.label;
+  st.out.templateVolumeMm3 = enclosedVolume(obj.templ);
+  st.out.templateVertices = obj.templ.vertexCount();
+  // Unless its model says: bones keep their template's triangulation (a bone template made by decimation puts its
+  // vertices where the surface bends, condyles and head, which a uniform remesh spreads out: phantom femurs 0.01–0.06
+  // mm more ASSD; they showed no fold without it), muscles and generic objects take the run's. A volumetric object's
+  // surface is its tetrahedralisation's boundary, which the mesher makes of well-shaped facets anyway.
+  st.out.remeshed =
+      obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone) && !obj.model.volumetric;
+  const TriangleMesh templ = st.out.remeshed ? remeshIsotropic(obj.templ, obj.templ.vertexCount()) : obj.templ;
+  // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
+  st.lv.resize(static_cast<size_t>(rs.levels));
+  st.lv[0].triangles = templ;
+  TetMesh tets;
+  if (obj.model.volumetric) {
+    // Tetrahedra about as large as the template's triangles; the finest surface becomes the tet mesh's boundary.
+    const double edge = meanEdgeLength(templ);
+    TetOptions to;
+    to.facetSizeMm = edge;
+    to.cellSizeMm = 1.5 * edge;
+    to.facetDistanceMm = 0.1 * edge;
+    // ODT smoothing, sliver perturbation and exudation: fewer badly shaped tets to fold at the surface.
+    to.odt = to.perturb = to.exude = true;
+    // Every tet gets a node off the surface, so finishObject() can untangle any tet the surface folds.
+    to.interiorNodes = true;
+    tets = tetrahedralize(templ, to);
+    st.volume = volumeSimplexFromTets(tets);
+    st.lv[0].triangles = tetBoundary(tets);
+  }
+  for (int l = 1; l < rs.levels; ++l) {
+    const int target = std::max(150, st.lv[l - 1].triangles.vertexCount() / 4);
+    st.lv[l].triangles = target < st.lv[l - 1].triangles.vertexCount() ? decimateMesh(st.lv[l - 1].triangles, target)
+                                                                       : st.lv[l - 1].triangles;
+  }
+  for (auto& l : st.lv) l.simplex = simplexFromTriangles(l.triangles);
+  if (st.volume) {
+    // The surface's simplex vertices must be the model's ghosts, in the same order and place.
+    const Points& ghosts = st.volume->boundary.positions;
+    if (ghosts.rows() != st.lv[0].simplex.vertexCount() ||
+        (ghosts - st.lv[0].simplex.positions).cwiseAbs().maxCoeff() > 1e-6 * (1.0 + ghosts.cwiseAbs().maxCoeff()))
+      throw Error(obj.name + ": the volume model's boundary does not match its surface model");
+  }
+  st.search.mode = obj.hasForce ? obj.force : obj.model.imageForce;
+  st.search.distancePenalty = opts.image.edgePenalty;
+  // Polarity: the object's setting, else estimated once on the coarsest scale at the template position, on the template
+  // as given (a vote over its vertices: remeshed, the same surface votes with other weights, and a borderline case such
+  // as the phantom femur's thin cortex over bright marrow would flip).
+  st.polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
+  if (st.polarity == Polarity::Auto) {
+    const SimplexMesh given = st.out.remeshed ? simplexFromTriangles(obj.templ) : st.lv[0].simplex;
+    st.polarity = estimatePolarity(features.at(rs.sigmaMm[0]), given.positions, simplexVertexNormals(given));
+  }
+  st.out.polarity = st.polarity;
+  st.current = st.lv[static_cast<size_t>(rs.levels - 1)].simplex;
+}
+
+void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts, const ImageFeatures& feat,
+                const Grid& grid, bool refine) {
+  const LevelMeshes& ref = st.lv[static_cast<size_t>(l)];
+  if (l != coarsest && !refine) {
+    // Carry the displacement of the coarser level's surface over to this level's template.
+    const LevelMeshes& coarse = st.lv[static_cast<size_t>(l + 1)];
+    const TriangleMesh moved = trianglesFromSimplex(st.current);
+    const Eigen::MatrixXd disp = moved.vertices - coarse.triangles.vertices;
+    SurfaceTransfer transfer(coarse.triangles, ref.triangles.vertices);
+    TriangleMesh start = ref.triangles;
+    start.vertices += transfer.apply(disp);
+    st.current = simplexFromTriangles(start);
+  }
+  st.search.mode = refine ? TargetMode::Gradient : st.obj->hasForce ? st.obj->force : st.obj->model.imageForce;
+  st.search.edgeLevel = std::numeric_limits<double>::quiet_NaN();
+  if (st.search.mode == TargetMode::Gradient && (opts.image.edgeLevel || refine)) {
+    const SimplexMesh& at = refine ? st.current : ref.simplex;
+    st.search.edgeLevel = estimateEdgeLevel(feat, at.positions, simplexVertexNormals(at));
+  }
+  if (st.search.mode == TargetMode::Profile) {
+    // Learned where the template came from (e.g. the mirrored contralateral structure) when the scene says so.
+    Points positions = ref.simplex.positions, normals = simplexVertexNormals(ref.simplex);
+    toProfileSource(*st.obj, positions, normals);
+    st.profiles = learnProfiles(feat, positions, normals, st.search, grid);
+  }
+  // Only what the object's model asks for is built.
+  const ObjectModel& model = st.obj->model;
+  // After the axis-first stage, the template swept by the stage's axis is the object's reference shape (shape memory,
+  // global prior, axis and radii): the straight template's similarity prior would otherwise pull the bend back out.
+  const SimplexMesh* shape = &ref.simplex;
+  SimplexMesh bentShape;
+  if (refine) {
+    bentShape = st.current;
+    shape = &bentShape;
+  } else if (st.stageAxis.rows() > 0) {
+    bentShape = ref.simplex;
+    bentShape.positions = st.bentByStage(ref.simplex.positions);
+    shape = &bentShape;
+  }
+  st.internal.reset();
+  if (model.shapeMemory)
+    st.internal = std::make_unique<SimplexInternalConstraints>(
+        *shape, model.internalStiffness >= 0 ? model.internalStiffness : opts.shape.internalStiffness,
+        opts.shape.internalMode == InternalMode::Smoothing ? InternalMode::Smoothing : *model.shapeMemory);
+  st.targets = std::make_unique<TargetConstraints>(opts.image.stiffness);
+  st.prior.reset();
+  if (model.globalPrior)
+    st.prior = std::make_unique<ShapeMatchingConstraint>(shape->positions,
+                                                         model.priorTransform.value_or(opts.shape.priorTransform), opts.shape.priorStart);
+  st.radial.reset();
+  st.centering.reset();
+  if (model.medialAxis) {
+    // The axis of this level's template, its surface vertices attached with their template radii; the axis starts
+    // where the best similarity fit of the template onto the current surface puts it.
+    MedialAxisOptions mo;
+    mo.spacingMm = model.axisSpacingMm > 0 ? model.axisSpacingMm : opts.axis.spacingMm;
+    st.axis = buildMedialAxis(refine ? trianglesFromSimplex(st.current) : ref.triangles, mo);
+    if (shape != &ref.simplex && !refine) st.axis.curve.positions = st.bentByStage(st.axis.curve.positions);
+    st.attachment = attachToAxis(shape->positions, st.axis.curve.positions);
+    const Eigen::Matrix4d fit = fitTransform(shape->positions, st.current.positions,
+                                             Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Similarity);
+    st.axisStart = ((st.axis.curve.positions * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
+                    fit.topRightCorner<3, 1>().transpose());
+  }
+  st.volumeSet.reset();
+  st.volumeHold.reset();
+  if (st.volume && l == 0) {
+    // Tet vertices start where the best affine fit of the template surface onto the current one puts them.
+    // The refinement pass starts them where the finest level left them.
+    if (refine) {
+      st.volStart = st.volFinal;
+    } else {
+      const int nt = st.volume->tetCount();
+      const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
+                                               Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
+      st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
+                    fit.topRightCorner<3, 1>().transpose();
+    }
+    const double gamma = model.volumeStiffness >= 0 ? model.volumeStiffness : opts.volume.stiffness;
+    st.volumeSet = std::make_unique<VolumeSimplexConstraints>(*st.volume, gamma, VolumeBoundary::SurfaceDriven);
+    // The template's volume, held unless the image demands another (volume_preservation.h).
+    st.volumeHold = std::make_unique<VolumePreservation>(ref.simplex);
+  }
+  for (ConstraintSet* c : st.sets()) c->setFirstParticle(st.first);
+  if (st.volumeSet) st.volumeSet->setFirstParticle(st.volFirst);  // tets first, then the ghosts = the surface
+}
+
+void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
+  const ObjectModel& model = st.obj->model;
+  const double gamma = model.radialStiffness >= 0 ? model.radialStiffness : opts.axis.radialStiffness;
+  st.radial = std::make_unique<RadialConstraints>(st.attachment, st.axisFirst, gamma);
+  st.centering = std::make_unique<AxisCentering>(st.attachment, st.axisFirst, st.axis.curve.vertexCount(), opts.axis.centering);
+  st.radial->setFirstParticle(st.first);
+  st.centering->setFirstParticle(st.first);
+}
+
+}  // namespace msk::detail

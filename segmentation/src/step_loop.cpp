@@ -1,0 +1,70 @@
+// The step loop of one pass, and what a pass hands back to each object.
+#include <algorithm>
+#include <string>
+
+#include "msk/core/error.h"
+#include "segment_stages.h"
+
+namespace msk::detail {
+
+LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fixed, LevelSystem& system,
+                     Solver& solver, const SegmentOptions& opts, const ResolvedSettings& rs, const ImageFeatures& feat,
+                     const ImageFeatures* focus, const Grid& grid, int& stepsDone, int rampSteps, int totalSteps,
+                     const std::string& stage, const ProgressFn& progress, double& detectSeconds) {
+  LevelReport rep;
+  const ShapeOptions& shape = opts.shape;
+  const int sideTestEvery = opts.collision.sideTestEvery;
+  for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
+    const double runFraction = std::min(1.0, static_cast<double>(stepsDone) / std::max(1, rampSteps - 1));
+    for (size_t i = 0; i < objs.size(); ++i) {
+      if (fixed[i]) continue;
+      ObjectState& st = objs[i];
+      if (st.prior) st.prior->setLambda(shape.priorStart + (shape.priorEnd - shape.priorStart) * runFraction);
+      st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
+      const ImageTargets found = imageTargets(st, st.current, opts, feat, grid, focus);
+      st.targets->setTargets(found.targets, found.weights);
+      st.residual = found.residual;
+    }
+    // The side test (winding number) on the first step of a level and every few steps after it, so that a vertex
+    // that got through a partner is found and pushed back out the right way.
+    const auto tc = Clock::now();
+    const bool sideTest = s == 0 || (sideTestEvery > 0 && s % sideTestEvery == 0);
+    system.detectContacts(solver.positions(), sideTest, opts.evolution.threads);
+    detectSeconds += since(tc);
+    rep.lastMaxMoveMm = solver.step(system.sets());
+    ++rep.steps;
+    ++stepsDone;
+    if (progress) progress(std::min(1.0, static_cast<double>(stepsDone) / totalSteps), stage);
+    if (rep.lastMaxMoveMm < rs.toleranceMm) {
+      rep.converged = true;
+      break;
+    }
+  }
+  return rep;
+}
+
+void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed, const Solver& solver, int l,
+                 int order, const LevelReport& report) {
+  for (size_t i = 0; i < objs.size(); ++i) {
+    if (fixed[i]) continue;
+    ObjectState& st = objs[i];
+    const Points& x = solver.positions();
+    st.current.positions = x.middleRows(st.first, st.current.vertexCount());
+    if (st.hasAxis()) st.axisEnd = x.middleRows(st.axisFirst, st.axisCount());
+    if (st.volumeSet) st.volFinal = x.middleRows(st.volFirst, st.tetCount(l));
+    // A run that has blown up (size changed by more than ×5) stops with a clear message instead of writing it out.
+    const Points& refP = st.lv[static_cast<size_t>(l)].simplex.positions;
+    const double refDiag = (refP.colwise().maxCoeff() - refP.colwise().minCoeff()).norm();
+    const Points& cur = st.current.positions;
+    const double curDiag = (cur.colwise().maxCoeff() - cur.colwise().minCoeff()).norm();
+    if (!(curDiag < 5.0 * refDiag && curDiag > 0.2 * refDiag))
+      throw Error(st.obj->name + ": evolution diverged at level " + std::to_string(order + 1) + " (size ×" +
+                  std::to_string(curDiag / refDiag) + " of the template); lower the stiffness or check the image");
+    for (const auto& kv : solver.secondsPerFamily()) st.out.secondsPerFamily[kv.first] += kv.second;
+    LevelReport r = report;
+    r.vertices = st.current.vertexCount();
+    st.out.levels.push_back(r);
+  }
+}
+
+}  // namespace msk::detail
