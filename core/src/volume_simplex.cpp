@@ -283,19 +283,6 @@ VolumeSimplexMesh volumeSimplexFromTets(const TetMesh& mesh) {
   return vm;
 }
 
-Points volumeSimplexResiduals(const VolumeSimplexMesh& vm, const Points& p) {
-  const int n = vm.vertexCount();
-  MSK_ASSERT(p.rows() == n, "volumeSimplexResiduals: " + str(p.rows()) + " positions for " + str(n) + " vertices");
-  Points r(n, 3);
-  for (int v = 0; v < n; ++v) {
-    Vec3 c = -p.row(v).transpose();
-    for (int i = 0; i < 4; ++i) c += vm.epsilon(v, i) * p.row(vm.simplex.neighbors(v, i)).transpose();
-    if (vm.degenerate[v] == 2) c.setZero();
-    r.row(v) = c.transpose();
-  }
-  return r;
-}
-
 TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& vm, const Points& p) {
   return tetsFromVolumeSimplex(vm, p, Eigen::VectorXi(), Points(0, 3));
 }

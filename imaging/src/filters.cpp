@@ -49,20 +49,6 @@ void convolveAxis(std::vector<float>& data, const Grid& grid, int axis, const st
   });
 }
 
-/// Derivative per mm along voxel axis `axis` at (i, j, k): central differences, one-sided at the borders,
-/// zero when the axis has a single voxel.
-double axisDerivative(const ImageF& image, int axis, int i, int j, int k) {
-  const int n = image.grid.dims[axis];
-  if (n < 2) return 0;
-  Eigen::Vector3i p(i, j, k), lo = p, hi = p;
-  const int c = p[axis];
-  lo[axis] = std::max(c - 1, 0);
-  hi[axis] = std::min(c + 1, n - 1);
-  const double steps = hi[axis] - lo[axis];
-  return (double(image.at(hi[0], hi[1], hi[2])) - double(image.at(lo[0], lo[1], lo[2]))) /
-         (steps * image.grid.spacing[axis]);
-}
-
 }  // namespace
 
 std::optional<double> sampleTrilinear(const ImageF& image, const Eigen::Vector3d& worldMm) {
@@ -107,36 +93,6 @@ ImageF gaussianSmooth(const ImageF& image, double sigmaMm) {
   return out;
 }
 
-std::array<ImageF, 3> gradientWorld(const ImageF& image) {
-  const Grid& g = image.grid;
-  std::array<ImageF, 3> out{ImageF(g), ImageF(g), ImageF(g)};
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        const Eigen::Vector3d perAxis(axisDerivative(image, 0, i, j, k), axisDerivative(image, 1, i, j, k),
-                                      axisDerivative(image, 2, i, j, k));
-        const Eigen::Vector3d world = g.axisToWorld(perAxis);
-        const size_t n = g.index(i, j, k);
-        for (int c = 0; c < 3; ++c) out[c].data[n] = static_cast<float>(world[c]);
-      }
-  return out;
-}
-
-ImageF gradientMagnitude(const ImageF& image, double sigmaMm) {
-  const ImageF smooth = sigmaMm > 0 ? gaussianSmooth(image, sigmaMm) : image;
-  const Grid& g = smooth.grid;
-  ImageF out(g);
-  // |direction · v| = |v| (direction is orthonormal), so the rotation is not needed for the magnitude.
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        const Eigen::Vector3d d(axisDerivative(smooth, 0, i, j, k), axisDerivative(smooth, 1, i, j, k),
-                                axisDerivative(smooth, 2, i, j, k));
-        out.at(i, j, k) = static_cast<float>(d.norm());
-      }
-  return out;
-}
-
 ImageF resample(const ImageF& image, const Grid& target, float outside) {
   ImageF out(target, outside);
   for (int k = 0; k < target.dims[2]; ++k)
@@ -144,15 +100,6 @@ ImageF resample(const ImageF& image, const Grid& target, float outside) {
       for (int i = 0; i < target.dims[0]; ++i)
         if (auto v = sampleTrilinear(image, target.toWorld(Eigen::Vector3d(i, j, k))))
           out.at(i, j, k) = static_cast<float>(*v);
-  return out;
-}
-
-LabelMap resampleLabels(const LabelMap& labels, const Grid& target) {
-  LabelMap out(target, 0);
-  for (int k = 0; k < target.dims[2]; ++k)
-    for (int j = 0; j < target.dims[1]; ++j)
-      for (int i = 0; i < target.dims[0]; ++i)
-        if (auto v = sampleNearest(labels, target.toWorld(Eigen::Vector3d(i, j, k)))) out.at(i, j, k) = *v;
   return out;
 }
 

@@ -221,3 +221,32 @@ TEST(CollisionConstraints, InsideTestDecidesTheSideAndTheOutsideAssumptionNeverP
     }
   }
 }
+
+// The reference parameters rebuild every vertex of a simplex sphere from its neighbours, P = Σ ε̃i Pi + h̃ r⊥ n (so
+// the shape memory's target of the template is the template), with ε̃ near ⅓ on the nearly regular mesh and h̃ > 0
+// (convex); collinear neighbours give ε̃ = ⅓ and h̃ = 0.
+TEST(SimplexReferenceParameters, RebuildEveryVertexOfASphereFromItsNeighbours) {
+  msk::SimplexMesh s = msk::simplexFromTriangles(msk::makeIcosphere(15.0, 3, Eigen::Vector3d(1, -2, 3)));
+  Eigen::MatrixX3d eps;
+  Eigen::VectorXd hr;
+  msk::simplexReferenceParameters(s, eps, hr);
+  ASSERT_EQ(eps.rows(), s.vertexCount());
+  for (int v = 0; v < s.vertexCount(); ++v) {
+    const Eigen::Vector3d pi[3] = {s.positions.row(s.neighbors(v, 0)), s.positions.row(s.neighbors(v, 1)),
+                                   s.positions.row(s.neighbors(v, 2))};
+    const double e[3] = {eps(v, 0), eps(v, 1), eps(v, 2)};
+    Eigen::Vector3d target;
+    ASSERT_TRUE(msk::simplexShapeTarget(pi, e, hr[v], target));
+    EXPECT_LT((target - s.positions.row(v).transpose()).norm(), 1e-9) << v;
+    EXPECT_NEAR(eps.row(v).sum(), 1.0, 1e-12);
+    EXPECT_LT((eps.row(v).array() - 1.0 / 3.0).abs().maxCoeff(), 0.1) << v;
+    EXPECT_GT(hr[v], 0) << v;
+  }
+  const int v = 7;
+  const Eigen::Vector3d p1 = s.positions.row(s.neighbors(v, 0)), p3 = s.positions.row(s.neighbors(v, 2));
+  s.positions.row(s.neighbors(v, 1)) = (0.5 * (p1 + p3)).transpose();  // collinear neighbours
+  msk::simplexReferenceParameters(s, eps, hr);
+  EXPECT_EQ(hr[v], 0);
+  EXPECT_NEAR(eps(v, 0), 1.0 / 3.0, 1e-15);
+  EXPECT_TRUE(eps.allFinite() && hr.allFinite());
+}

@@ -104,26 +104,6 @@ TEST(Filters, NearestPicksTheClosestVoxel) {
   EXPECT_EQ(*msk::sampleNearest(labels, g.toWorld({4.0, 3.0, 0.0})), static_cast<int32_t>(g.index(4, 3, 0)));
 }
 
-TEST(Filters, GradientWorldOfRampIsItsCoefficientsOnObliqueAnisotropicGrid) {
-  const msk::Grid g = obliqueGrid();
-  const Ramp f;
-  const auto grad = msk::gradientWorld(rampImage(g, f));
-  double worst = 0;
-  for (int k = 1; k + 1 < g.dims[2]; ++k)
-    for (int j = 1; j + 1 < g.dims[1]; ++j)
-      for (int i = 1; i + 1 < g.dims[0]; ++i) {
-        const Eigen::Vector3d v(grad[0].at(i, j, k), grad[1].at(i, j, k), grad[2].at(i, j, k));
-        worst = std::max(worst, (v - f.abc).cwiseAbs().maxCoeff());
-      }
-  EXPECT_LT(worst, 1e-4);
-  // One-sided differences are exact for a ramp too, at the borders.
-  const Eigen::Vector3d c(grad[0].at(0, 0, 0), grad[1].at(0, 0, 0), grad[2].at(0, 0, 0));
-  EXPECT_LT((c - f.abc).cwiseAbs().maxCoeff(), 1e-4);
-  // The magnitude (no smoothing) is |(a, b, c)|.
-  const msk::ImageF mag = msk::gradientMagnitude(rampImage(g, f), 0.0);
-  EXPECT_NEAR(mag.at(5, 5, 4), f.abc.norm(), 1e-4);
-}
-
 TEST(Filters, GaussianOfDeltaHasSigmaSquaredSecondMomentsInMmOnAnisotropicGrid) {
   msk::Grid g;
   g.dims = {61, 41, 15};
@@ -191,16 +171,6 @@ TEST(Filters, ResampleOfRampOntoRotatedGridReproducesIt) {
       }
   EXPECT_GT(inside, 1000);
   EXPECT_GT(out, 1000);
-}
-
-TEST(Filters, ResampleLabelsOntoSameGridIsIdentity) {
-  const msk::Grid g = obliqueGrid();
-  msk::LabelMap labels(g);
-  for (size_t n = 0; n < labels.data.size(); ++n) labels.data[n] = static_cast<int32_t>(n % 7);
-  EXPECT_EQ(msk::resampleLabels(labels, g).data, labels.data);
-  msk::Grid far = g;
-  far.origin += Eigen::Vector3d(1000, 0, 0);
-  for (int32_t v : msk::resampleLabels(labels, far).data) ASSERT_EQ(v, 0);
 }
 
 TEST(Filters, PercentileInterpolatesBetweenOrderStatistics) {

@@ -735,7 +735,9 @@ TEST(Scene, WrittenSceneReadsBackTheSame) {
     EXPECT_EQ(x.hasForce, y.hasForce);
     EXPECT_EQ(x.force, y.force);
     EXPECT_EQ(x.profileSource.has_value(), y.profileSource.has_value());
-    if (x.profileSource) EXPECT_EQ(*x.profileSource, *y.profileSource) << x.name;
+    if (x.profileSource) {
+      EXPECT_EQ(*x.profileSource, *y.profileSource) << x.name;
+    }
     EXPECT_EQ(x.model.shapeMemory, y.model.shapeMemory) << x.name;
     EXPECT_EQ(x.model.internalStiffness, y.model.internalStiffness);
     EXPECT_EQ(x.model.globalPrior, y.model.globalPrior);

@@ -49,37 +49,12 @@ SimplexMesh simplexFromTriangles(const TriangleMesh& mesh);
 /// with V₀ the face centroids and μ small, so the round trip triangles → simplex → triangles does not shrink.
 TriangleMesh trianglesFromSimplex(const SimplexMesh& mesh);
 
-/// Per-vertex geometry of a 2-simplex mesh (DESIGN-NOTES §1; Delingette's metric parameters).
-struct SimplexGeometry {
-  Points normals;             ///< #V×3 unit normal of the neighbours' plane, outward
-  Eigen::MatrixX3d epsilon;   ///< #V×3 metric parameters ε1..ε3 (Σ = 1): P⊥ = Σ εi Pi
-  Eigen::VectorXd height;     ///< signed height h of P above the neighbours' plane (mm), P = P⊥ + h n
-  Eigen::VectorXd circumRadius;  ///< radius r⊥ of the circle through P1, P2, P3 (mm)
-  Eigen::VectorXd simplexAngle;  ///< simplex angle φ ∈ [−π, π] (radians, sign of h; 0 when h = 0)
-  Eigen::VectorXd meanCurvature;  ///< H = sin φ / r⊥ (1/mm)
-};
-
-/// Computes normals, metric parameters, heights, simplex angles and mean curvatures (k = 2). φ is the angle of the
-/// sphere through P, P1, P2, P3 (Delingette 1999, IJCV 32(2), §2: sin φ = r⊥/R·sign h). A vertex with collinear
-/// neighbours gets the surface normal (simplexVertexNormals), ε = 1/3, h = φ = H = 0 and r⊥ = half its largest
-/// neighbour distance. Throws Error if the mesh is not a valid 2-simplex mesh.
-SimplexGeometry simplexGeometry(const SimplexMesh& mesh);
-
 /// Area-weighted outward vertex normals of a 2-simplex mesh's surface (smoother than the neighbour-plane normal).
 Points simplexVertexNormals(const SimplexMesh& mesh);
 
 /// The faces of a 2-simplex mesh split into triangles fanned from each face's first vertex (outward, indices are
 /// simplex vertices): a triangulated surface whose corners are the particles themselves (used for collisions).
 Triangles simplexFanTriangles(const SimplexMesh& mesh);
-
-/// Enclosed volume of a 2-simplex mesh (polygon faces fanned around their centroid), mm³.
-double simplexVolume(const SimplexMesh& mesh);
-
-/// Refines a 2-simplex mesh ×4 in vertices: its dual triangles (trianglesFromSimplex) are split 1→4, each new edge
-/// vertex placed on the curved PN-triangle edge through the end points and their normals (so the surface does not
-/// shrink), and the result dualised again. Child vertex 4t+i has parent t and inherits t's point data. `parentOf`
-/// (optional) receives the parent index of every new vertex.
-SimplexMesh refineSimplex(const SimplexMesh& mesh, std::vector<int>* parentOf = nullptr);
 
 /// Interpolation from one surface to another, set up once between two reference shapes (e.g. two resolution levels
 /// of a template): each target point is bound to its closest point on the source's triangles with barycentric

@@ -105,10 +105,6 @@ VolumeSimplexMesh volumeSimplexFromTets(const TetMesh& mesh);
 /// renormalised to Σ = 1). Non-finite input also gives 2.
 int simplexBarycentric(const Eigen::Vector3d& p, const Eigen::Vector3d pi[4], double eps[4]);
 
-/// Residuals C_v = Σ ε̃i Pi − P of the 3-simplex constraint at `positions` (#(T+B)×3), mm; zero rows for vertices
-/// marked degenerate = 2.
-Points volumeSimplexResiduals(const VolumeSimplexMesh& model, const Points& positions);
-
 /// Tet nodes recovered from simplex positions (#(T+B)×3): least squares making every tet's node mean equal its
 /// simplex vertex and every boundary face's node mean equal its ghost, min |A N − P|² + μ|N − N₀|² with N₀ the mean
 /// of the incident simplex vertices and μ small (1e-6), so the rest positions give back the rest nodes.

@@ -1,7 +1,6 @@
 #pragma once
-/// Volume filters in world units: Gaussian smoothing (sigma in mm), gradients (per mm, world RAS axes),
-/// resampling, robust intensity normalisation.
-#include <array>
+/// Volume filters in world units: sampling, Gaussian smoothing (sigma in mm), resampling, robust intensity
+/// normalisation.
 #include <optional>
 #include <vector>
 
@@ -19,17 +18,8 @@ std::optional<int32_t> sampleNearest(const LabelMap& labels, const Eigen::Vector
 /// Separable Gaussian smoothing, sigma in mm (converted per axis with the spacing; sigma ≤ 0: copy).
 ImageF gaussianSmooth(const ImageF& image, double sigmaMm);
 
-/// Gradient in world RAS components, intensity per mm (central differences on the grid, rotated by direction).
-std::array<ImageF, 3> gradientWorld(const ImageF& image);
-
-/// |∇(G_sigma * I)| in intensity per mm (sigma ≤ 0: no smoothing).
-ImageF gradientMagnitude(const ImageF& image, double sigmaMm);
-
 /// Linear resampling of `image` onto `target` (world-space correspondence); `outside` where undefined.
 ImageF resample(const ImageF& image, const Grid& target, float outside = 0.f);
-
-/// Nearest-neighbour resampling of a label map onto `target` (0 outside).
-LabelMap resampleLabels(const LabelMap& labels, const Grid& target);
 
 /// Robust normalisation: maps the `lowPercent` and `highPercent` percentiles of finite values to 0 and 1.
 ImageF normalizeIntensity(const ImageF& image, double lowPercent = 1.0, double highPercent = 99.0);
