@@ -10,6 +10,7 @@
 #include <Eigen/SparseCore>
 
 #include "msk/core/error.h"
+#include "msk/core/triangle_grid.h"
 
 namespace msk {
 
@@ -437,149 +438,34 @@ Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 // ------------------------------------------------------------------------------------------------ transfer
 
 namespace {
-/// Uniform grid over triangle bounding boxes (CSR cell lists).
-class TriangleGrid {
- public:
-  TriangleGrid(const Points& v, const Triangles& f) : v_(v), f_(f) {
-    const int nt = static_cast<int>(f.rows());
-    Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    double edgeSum = 0;
-    for (int t = 0; t < nt; ++t) {
-      for (int k = 0; k < 3; ++k) {
-        lo = lo.cwiseMin(v.row(f(t, k)));
-        hi = hi.cwiseMax(v.row(f(t, k)));
-        edgeSum += (v.row(f(t, k)) - v.row(f(t, (k + 1) % 3))).norm();
-      }
+/// The transfer's grid layout over `f` at `v`: cells about one mean edge long (coarser while there would be more than a
+/// few cells per triangle, so huge, thin or far-flung meshes stay cheap), over the triangles' bounding box.
+TriangleGrid::Layout transferLayout(const Points& v, const Triangles& f) {
+  const int nt = static_cast<int>(f.rows());
+  Eigen::RowVector3d lo = Eigen::RowVector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  double edgeSum = 0;
+  for (int t = 0; t < nt; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      lo = lo.cwiseMin(v.row(f(t, k)));
+      hi = hi.cwiseMax(v.row(f(t, k)));
+      edgeSum += (v.row(f(t, k)) - v.row(f(t, (k + 1) % 3))).norm();
     }
-    const Vec3 ext = (hi - lo).transpose();
-    double h = edgeSum / (3.0 * nt);
-    if (!(h > 0)) h = std::max(ext.maxCoeff(), 1.0);
-    // Bound the cell count (a few cells per triangle) so huge, thin or far-flung meshes stay cheap.
-    const double maxCells = 8.0 * nt + 64.0;
-    for (;;) {
-      const double cells =
-          std::ceil(ext.x() / h + 1e-9) * std::ceil(ext.y() / h + 1e-9) * std::ceil(ext.z() / h + 1e-9);
-      if (cells <= maxCells) break;
-      h *= 1.25;
-    }
-    h_ = h;
-    origin_ = lo.transpose();
-    for (int i = 0; i < 3; ++i) dims_[i] = std::max(1, static_cast<int>(std::ceil(ext[i] / h + 1e-9)));
-    const size_t ncell = static_cast<size_t>(dims_[0]) * dims_[1] * dims_[2];
-    start_.assign(ncell + 1, 0);
-    auto range = [&](int t, int c0[3], int c1[3]) {
-      Vec3 tlo = v.row(f(t, 0)), thi = tlo;
-      for (int k = 1; k < 3; ++k) {
-        tlo = tlo.cwiseMin(Vec3(v.row(f(t, k))));
-        thi = thi.cwiseMax(Vec3(v.row(f(t, k))));
-      }
-      for (int i = 0; i < 3; ++i) {
-        c0[i] = cellIndex(tlo[i], i);
-        c1[i] = cellIndex(thi[i], i);
-      }
-    };
-    for (int pass = 0; pass < 2; ++pass) {
-      std::vector<int> fill;
-      if (pass == 1) {
-        for (size_t c = 0; c < ncell; ++c) start_[c + 1] += start_[c];
-        tris_.resize(static_cast<size_t>(start_[ncell]));
-        fill.assign(start_.begin(), start_.end() - 1);
-      }
-      for (int t = 0; t < nt; ++t) {
-        int c0[3], c1[3];
-        range(t, c0, c1);
-        for (int z = c0[2]; z <= c1[2]; ++z)
-          for (int y = c0[1]; y <= c1[1]; ++y)
-            for (int x = c0[0]; x <= c1[0]; ++x) {
-              const size_t id = cellId(x, y, z);
-              if (pass == 0)
-                ++start_[id + 1];
-              else
-                tris_[static_cast<size_t>(fill[id]++)] = t;
-            }
-      }
-    }
-    stamp_.assign(static_cast<size_t>(nt), -1);
   }
-
-  /// Exact closest point of the mesh to p: triangle, barycentric weights, distance.
-  void query(const Vec3& p, int queryId, int& bestTri, Vec3& bestBary, double& bestDist) {
-    int c[3];
-    for (int i = 0; i < 3; ++i) c[i] = cellIndex(p[i], i);
-    double best2 = std::numeric_limits<double>::infinity();
-    bestTri = -1;
-    const int maxRing = std::max({dims_[0], dims_[1], dims_[2]});
-    for (int r = 0; r <= maxRing; ++r) {
-      for (int dz = -r; dz <= r; ++dz) {
-        const int z = c[2] + dz;
-        if (z < 0 || z >= dims_[2]) continue;
-        for (int dy = -r; dy <= r; ++dy) {
-          const int y = c[1] + dy;
-          if (y < 0 || y >= dims_[1]) continue;
-          const bool shell = std::abs(dz) == r || std::abs(dy) == r;
-          for (int dx = -r; dx <= r; dx += shell ? 1 : std::max(1, 2 * r)) {
-            const int x = c[0] + dx;
-            if (x < 0 || x >= dims_[0]) continue;
-            if (cellDistance2(p, x, y, z) >= best2) continue;
-            const size_t id = cellId(x, y, z);
-            for (int i = start_[id]; i < start_[id + 1]; ++i) {
-              const int t = tris_[static_cast<size_t>(i)];
-              if (stamp_[static_cast<size_t>(t)] == queryId) continue;
-              stamp_[static_cast<size_t>(t)] = queryId;
-              Vec3 bary;
-              const Vec3 q = closestPointOnTriangle(p, v_.row(f_(t, 0)), v_.row(f_(t, 1)), v_.row(f_(t, 2)), &bary);
-              const double d2 = (q - p).squaredNorm();
-              if (d2 < best2 || (d2 == best2 && t < bestTri)) {
-                best2 = d2;
-                bestTri = t;
-                bestBary = bary;
-              }
-            }
-          }
-        }
-      }
-      // Every triangle not yet seen lies in cells outside the cube of rings 0..r around c: bound its distance.
-      double bound = std::numeric_limits<double>::infinity();
-      for (int i = 0; i < 3; ++i) {
-        if (c[i] - r > 0) bound = std::min(bound, std::max(0.0, p[i] - (origin_[i] + (c[i] - r) * h_)));
-        if (c[i] + r < dims_[i] - 1) bound = std::min(bound, std::max(0.0, origin_[i] + (c[i] + r + 1) * h_ - p[i]));
-      }
-      if (best2 <= bound * bound) break;  // also ends once the cube covers the grid (bound = ∞)
-    }
-    bestDist = std::sqrt(best2);
+  const Vec3 ext = (hi - lo).transpose();
+  double h = edgeSum / (3.0 * nt);
+  if (!(h > 0)) h = std::max(ext.maxCoeff(), 1.0);
+  const double maxCells = 8.0 * nt + 64.0;
+  for (;;) {
+    const double cells = std::ceil(ext.x() / h + 1e-9) * std::ceil(ext.y() / h + 1e-9) * std::ceil(ext.z() / h + 1e-9);
+    if (cells <= maxCells) break;
+    h *= 1.25;
   }
-
- private:
-  int cellIndex(double x, int axis) const {
-    const double u = std::floor((x - origin_[axis]) / h_);
-    if (!(u >= 0)) return 0;
-    if (u >= dims_[axis] - 1) return dims_[axis] - 1;
-    return static_cast<int>(u);
-  }
-  size_t cellId(int x, int y, int z) const {
-    return (static_cast<size_t>(z) * dims_[1] + static_cast<size_t>(y)) * dims_[0] + static_cast<size_t>(x);
-  }
-  double cellDistance2(const Vec3& p, int x, int y, int z) const {
-    const int cell[3] = {x, y, z};
-    double s = 0;
-    for (int i = 0; i < 3; ++i) {
-      // Border cells reach to infinity on their outer side (triangles are registered by clamped indices).
-      const double lo = cell[i] == 0 ? -std::numeric_limits<double>::infinity() : origin_[i] + cell[i] * h_;
-      const double hi =
-          cell[i] == dims_[i] - 1 ? std::numeric_limits<double>::infinity() : origin_[i] + (cell[i] + 1) * h_;
-      const double d = p[i] < lo ? lo - p[i] : (p[i] > hi ? p[i] - hi : 0.0);
-      s += d * d;
-    }
-    return s;
-  }
-
-  const Points& v_;
-  const Triangles& f_;
-  Vec3 origin_;
-  double h_ = 1;
-  int dims_[3] = {1, 1, 1};
-  std::vector<int> start_, tris_, stamp_;
-};
+  TriangleGrid::Layout layout;
+  layout.lo = lo.transpose();
+  layout.cell = h;
+  for (int i = 0; i < 3; ++i) layout.dims[i] = std::max(1, static_cast<int>(std::ceil(ext[i] / h + 1e-9)));
+  return layout;
+}
 }  // namespace
 
 SurfaceTransfer::SurfaceTransfer(const TriangleMesh& source, const Points& targetPoints) {
@@ -594,16 +480,14 @@ SurfaceTransfer::SurfaceTransfer(const TriangleMesh& source, const Points& targe
   tri_.resize(n, 3);
   bary_.resize(n, 3);
   distances_.resize(n);
-  TriangleGrid grid(source.vertices, source.faces);
+  TriangleGrid grid;
+  grid.build(transferLayout(source.vertices, source.faces), source.vertices, source.faces);
   for (int i = 0; i < n; ++i) {
-    int t = -1;
-    Vec3 bary;
-    double d = 0;
-    grid.query(targetPoints.row(i).transpose(), i, t, bary, d);
-    MSK_ASSERT(t >= 0, "SurfaceTransfer: no closest triangle found");
-    tri_.row(i) = source.faces.row(t);
-    bary_.row(i) = bary.transpose();
-    distances_[i] = d;
+    const SurfacePoint s = grid.closest(source.vertices, source.faces, targetPoints.row(i).transpose());
+    MSK_ASSERT(s.triangle >= 0, "SurfaceTransfer: no closest triangle found");
+    tri_.row(i) = source.faces.row(s.triangle);
+    bary_.row(i) << s.bary[0], s.bary[1], s.bary[2];
+    distances_[i] = s.distance;
   }
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 /// The partner side of vertex–surface collisions (DESIGN-NOTES §3): a closed triangulated surface whose corners are
 /// particles of a stacked system, with its connectivity set up once and a uniform grid over its triangles rebuilt
-/// once per step, shared by every collision set that tests vertices against it.
+/// once per step (TriangleGrid), shared by every collision set that tests vertices against it.
 #include <memory>
 #include <mutex>
 #include <unordered_map>
@@ -9,18 +9,11 @@
 
 #include <Eigen/Core>
 
+#include "msk/core/triangle_grid.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/winding_number.h"
 
 namespace msk {
-
-/// Closest point of a surface to a query vertex.
-struct SurfacePoint {
-  int triangle = -1;                  ///< −1 if nothing lies within reach
-  double bary[3] = {0, 0, 0};         ///< barycentric weights on the triangle's corners (sum 1)
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< the closest point, mm
-  double distance = 0;                ///< |point − query|, mm
-};
 
 /// A partner surface: triangles over global particle indices, queried for closest points and side normals.
 class CollisionSurface {
@@ -47,26 +40,14 @@ class CollisionSurface {
  private:
   Eigen::Vector3d faceNormal(const Points& p, int t) const;
   Eigen::Vector3d vertexNormal(const Points& p, int i, bool angleWeighted) const;
-  size_t cellIndex(int x, int y, int z) const;
-  Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
 
   Triangles tri_;
   double reach_;
   int idxLo_ = 0, idxHi_ = -1;            ///< range of the surface's particle indices
   std::vector<int> vtStart_, vtTri_;      ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
   std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
-  // Per-step grid (update()).
-  Points lo_, hi_;                        ///< triangle bounding boxes
-  Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();
-  double cell_ = 1;
-  Eigen::Vector3i dims_ = Eigen::Vector3i::Zero();
-  /// A triangle listed in a grid cell, with a copy of its bounding box, so that a query streams through a cell's list.
-  struct CellItem {
-    double lo[3], hi[3];
-    int triangle;
-  };
-  std::vector<int> start_;                ///< cell → its range of items_ (CSR)
-  std::vector<CellItem> items_;           ///< each cell's triangles, by index
+  TriangleGrid grid_;                     ///< over the triangles at the positions of the last update()
+  Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();  ///< the grid's box
   mutable std::unique_ptr<WindingNumber> winding_;  ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;
 };

@@ -1,0 +1,69 @@
+#pragma once
+/// Closest points on a triangle mesh through a uniform grid over its faces' bounding boxes: the search structure of
+/// collision partners (a bounded query, rebuilt every step) and of surface transfers (an unbounded query).
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "msk/core/triangle_mesh.h"
+
+namespace msk {
+
+/// Closest point of a surface to a query point.
+struct SurfacePoint {
+  int triangle = -1;                                ///< −1 if nothing was found
+  double bary[3] = {0, 0, 0};                       ///< barycentric weights on the triangle's corners (sum 1)
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< the closest point, mm
+  double distance = 0;                              ///< |point − query|, mm
+};
+
+/// A uniform grid listing each triangle in the cells its bounding box touches (cell lists in CSR form, each entry with
+/// a copy of its triangle's box so that a query streams through a cell's list). The triangles are rows of a table over
+/// the rows of a position array; both are passed to the queries, at the positions the grid was built for.
+class TriangleGrid {
+ public:
+  /// The cells: the corner of cell (0, 0, 0), the cell size (mm) and the number of cells per axis. Points outside map
+  /// to the nearest border cell.
+  struct Layout {
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+    double cell = 1;
+    Eigen::Vector3i dims = Eigen::Vector3i::Ones();
+  };
+
+  /// Lists every triangle of `tri` (rows of `p`) in the cells of `layout` its bounding box at `p` touches.
+  void build(const Layout& layout, const Points& p, const Triangles& tri);
+  /// Whether build() listed no triangle.
+  bool empty() const { return items_.empty(); }
+  /// The layout of the last build().
+  const Layout& layout() const { return layout_; }
+
+  /// The closest point of the triangles to `q` no farther than `radius` (at most the cell size): the cells the ball
+  /// touches within the 3×3×3 block around q's cell. Of equally close triangles (a shared vertex or edge) the one a
+  /// scan of the block in z, y, x order meets first wins, then the lower index. Thread-safe.
+  SurfacePoint closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q, double radius) const;
+
+  /// The closest point of the triangles to `q` at any distance: rings of cells around q's cell until no triangle not
+  /// yet seen can be closer (border cells reach to infinity outward); of equally close triangles the lower index
+  /// wins. Not thread-safe (it marks the triangles a query has seen).
+  SurfacePoint closest(const Points& p, const Triangles& tri, const Eigen::Vector3d& q) const;
+
+  /// The cell holding `x` (clamped to the grid).
+  Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
+
+ private:
+  size_t cellIndex(int x, int y, int z) const;
+  /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
+  double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
+  struct CellItem {
+    double lo[3], hi[3];
+    int triangle;
+  };
+  Layout layout_;
+  int triangles_ = 0;
+  std::vector<int> start_;        ///< cell → its range of items_ (CSR)
+  std::vector<CellItem> items_;   ///< each cell's triangles, by index
+  mutable std::vector<int> seen_;  ///< closest(): the query that last examined each triangle
+  mutable int query_ = 0;
+};
+
+}  // namespace msk

@@ -1,0 +1,172 @@
+#include "msk/core/triangle_grid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "msk/core/simplex_mesh.h"
+
+namespace msk {
+
+size_t TriangleGrid::cellIndex(int x, int y, int z) const {
+  const Eigen::Vector3i& d = layout_.dims;
+  return (static_cast<size_t>(z) * static_cast<size_t>(d[1]) + static_cast<size_t>(y)) * static_cast<size_t>(d[0]) +
+         static_cast<size_t>(x);
+}
+
+Eigen::Vector3i TriangleGrid::cellOf(const Eigen::Vector3d& x) const {
+  Eigen::Vector3i c;
+  for (int a = 0; a < 3; ++a) {
+    const double u = std::floor((x[a] - layout_.lo[a]) / layout_.cell);
+    c[a] = !(u >= 0) ? 0 : u >= layout_.dims[a] - 1 ? layout_.dims[a] - 1 : static_cast<int>(u);
+  }
+  return c;
+}
+
+void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles& tri) {
+  layout_ = layout;
+  triangles_ = static_cast<int>(tri.rows());
+  const size_t cells = static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) *
+                       static_cast<size_t>(layout.dims[2]);
+  start_.assign(cells + 1, 0);
+  items_.clear();
+  seen_.assign(static_cast<size_t>(triangles_), -1);
+  query_ = 0;
+  std::vector<CellItem> boxes(static_cast<size_t>(triangles_));
+  for (int t = 0; t < triangles_; ++t) {
+    const Eigen::Vector3d x[3] = {p.row(tri(t, 0)), p.row(tri(t, 1)), p.row(tri(t, 2))};
+    const Eigen::Vector3d lo = x[0].cwiseMin(x[1]).cwiseMin(x[2]), hi = x[0].cwiseMax(x[1]).cwiseMax(x[2]);
+    CellItem& item = boxes[static_cast<size_t>(t)];
+    for (int a = 0; a < 3; ++a) {
+      item.lo[a] = lo[a];
+      item.hi[a] = hi[a];
+    }
+    item.triangle = t;
+  }
+  auto forCells = [&](const CellItem& item, auto&& visit) {
+    const Eigen::Vector3i a = cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2]));
+    const Eigen::Vector3i b = cellOf(Eigen::Vector3d(item.hi[0], item.hi[1], item.hi[2]));
+    for (int z = a[2]; z <= b[2]; ++z)
+      for (int y = a[1]; y <= b[1]; ++y)
+        for (int x = a[0]; x <= b[0]; ++x) visit(cellIndex(x, y, z));
+  };
+  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { ++start_[ci + 1]; });
+  for (size_t i = 0; i < cells; ++i) start_[i + 1] += start_[i];
+  items_.resize(static_cast<size_t>(start_[cells]));
+  std::vector<int> fill(start_.begin(), start_.end() - 1);
+  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { items_[static_cast<size_t>(fill[ci]++)] = item; });
+}
+
+SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q,
+                                         double radius) const {
+  SurfacePoint best;
+  best.distance = radius;
+  // Only the cells the ball of `radius` around q touches (at most 2 per axis, as cells are at least `radius` wide),
+  // within the 3×3×3 block around q's cell; the result is that of scanning the whole block, each cell's triangles by
+  // index, keeping the first of equally close ones.
+  const Eigen::Vector3i c = cellOf(q);
+  const double pad = radius * (1 + 1e-9) + 1e-9;  // a superset of the touched cells despite rounding
+  const Eigen::Vector3i from = cellOf((q.array() - pad).matrix()).cwiseMax(c - Eigen::Vector3i::Ones());
+  const Eigen::Vector3i to = cellOf((q.array() + pad).matrix()).cwiseMin(c + Eigen::Vector3i::Ones());
+  size_t bestKey = 0;
+  for (int z = from[2]; z <= to[2]; ++z)
+    for (int y = from[1]; y <= to[1]; ++y)
+      for (int x = from[0]; x <= to[0]; ++x) {
+        const size_t ci = cellIndex(x, y, z);
+        for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
+          const CellItem& item = items_[static_cast<size_t>(k)];
+          // Cheap rejection: the triangle's box is already farther than the best found.
+          double boxSq = 0;
+          for (int a = 0; a < 3; ++a) {
+            const double out = std::max(std::max(item.lo[a] - q[a], q[a] - item.hi[a]), 0.0);
+            boxSq += out * out;
+          }
+          if (boxSq > best.distance * best.distance) continue;
+          const int t = item.triangle;
+          Eigen::Vector3d bc;
+          const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(),
+                                                            p.row(tri(t, 2)).transpose(), &bc);
+          const double d = (cp - q).norm();
+          if (!(d <= best.distance)) continue;
+          // Where the block scan meets t first: its first cell in the block (the box's lowest corner), then t.
+          const Eigen::Vector3i first =
+              cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2])).cwiseMax(c - Eigen::Vector3i::Ones());
+          const size_t key = cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) +
+                             static_cast<size_t>(t);
+          if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
+          best.distance = d;
+          best.point = cp;
+          best.triangle = t;
+          bestKey = key;
+          for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
+        }
+      }
+  return best;
+}
+
+double TriangleGrid::cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const {
+  const int cell[3] = {x, y, z};
+  double s = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double lo =
+        cell[i] == 0 ? -std::numeric_limits<double>::infinity() : layout_.lo[i] + cell[i] * layout_.cell;
+    const double hi = cell[i] == layout_.dims[i] - 1 ? std::numeric_limits<double>::infinity()
+                                                     : layout_.lo[i] + (cell[i] + 1) * layout_.cell;
+    const double d = q[i] < lo ? lo - q[i] : (q[i] > hi ? q[i] - hi : 0.0);
+    s += d * d;
+  }
+  return s;
+}
+
+SurfacePoint TriangleGrid::closest(const Points& p, const Triangles& tri, const Eigen::Vector3d& q) const {
+  const Eigen::Vector3i c = cellOf(q);
+  const Eigen::Vector3i& dims = layout_.dims;
+  const int id = query_++;
+  SurfacePoint best;
+  double best2 = std::numeric_limits<double>::infinity();
+  const int maxRing = dims.maxCoeff();
+  for (int r = 0; r <= maxRing; ++r) {
+    for (int dz = -r; dz <= r; ++dz) {
+      const int z = c[2] + dz;
+      if (z < 0 || z >= dims[2]) continue;
+      for (int dy = -r; dy <= r; ++dy) {
+        const int y = c[1] + dy;
+        if (y < 0 || y >= dims[1]) continue;
+        const bool shell = std::abs(dz) == r || std::abs(dy) == r;
+        for (int dx = -r; dx <= r; dx += shell ? 1 : std::max(1, 2 * r)) {
+          const int x = c[0] + dx;
+          if (x < 0 || x >= dims[0]) continue;
+          if (cellDistance2(q, x, y, z) >= best2) continue;
+          const size_t ci = cellIndex(x, y, z);
+          for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
+            const int t = items_[static_cast<size_t>(k)].triangle;
+            if (seen_[static_cast<size_t>(t)] == id) continue;
+            seen_[static_cast<size_t>(t)] = id;
+            Eigen::Vector3d bary;
+            const Eigen::Vector3d cp =
+                closestPointOnTriangle(q, p.row(tri(t, 0)), p.row(tri(t, 1)), p.row(tri(t, 2)), &bary);
+            const double d2 = (cp - q).squaredNorm();
+            if (d2 < best2 || (d2 == best2 && t < best.triangle)) {
+              best2 = d2;
+              best.triangle = t;
+              best.point = cp;
+              for (int i = 0; i < 3; ++i) best.bary[i] = bary[i];
+            }
+          }
+        }
+      }
+    }
+    // Every triangle not yet seen lies in cells outside the cube of rings 0..r around c: bound its distance.
+    double bound = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < 3; ++i) {
+      if (c[i] - r > 0) bound = std::min(bound, std::max(0.0, q[i] - (layout_.lo[i] + (c[i] - r) * layout_.cell)));
+      if (c[i] + r < dims[i] - 1)
+        bound = std::min(bound, std::max(0.0, layout_.lo[i] + (c[i] + r + 1) * layout_.cell - q[i]));
+    }
+    if (best2 <= bound * bound) break;  // also ends once the cube covers the grid (bound = ∞)
+  }
+  best.distance = std::sqrt(best2);
+  return best;
+}
+
+}  // namespace msk
