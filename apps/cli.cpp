@@ -2,12 +2,44 @@
 
 #include <cmath>
 #include <iostream>
+#include <memory>
+#include <sstream>
 
 namespace msk::cli {
 
 namespace {
 
 /// Refuses text that is not a finite number.
+/// `text` broken into lines of at most `width` characters at spaces.
+std::string wrapped(const std::string& text, size_t width) {
+  std::string out, line, word;
+  std::istringstream words(text);
+  while (words >> word) {
+    if (!line.empty() && line.size() + 1 + word.size() > width) {
+      out += line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  return out + line;
+}
+
+/// CLI11's help with the descriptions, the app's text and its footer wrapped to 120 columns.
+class WrappingFormatter : public CLI::Formatter {
+ public:
+  std::string make_option_desc(const CLI::Option* opt) const override {
+    return wrapped(CLI::Formatter::make_option_desc(opt), 120 - get_column_width());
+  }
+  std::string make_description(const CLI::App* app) const override {
+    const std::string text = app->get_description();
+    return text.empty() ? "" : wrapped(text, 120) + "\n\n";
+  }
+  std::string make_footer(const CLI::App* app) const override {
+    const std::string text = app->get_footer();
+    return text.empty() ? "" : wrapped(text, 120) + "\n";
+  }
+};
+
 const CLI::Validator kFinite(
     [](std::string& text) {
       char* end = nullptr;
@@ -16,13 +48,15 @@ const CLI::Validator kFinite(
         return std::string("expects a finite number, got '") + text + "'";
       return std::string();
     },
-    "NUMBER");
+    "");
 
 }  // namespace
 
 CommandLine::CommandLine(const std::string& command, const std::string& description)
     : CLI::App(description, "mskseg " + command) {
-  get_formatter()->column_width(34);
+  auto formatter = std::make_shared<WrappingFormatter>();
+  formatter->column_width(34);
+  this->formatter(formatter);
 }
 
 bool parseArgs(CLI::App& app, const std::vector<std::string>& args) {

@@ -1,4 +1,4 @@
-// Constraint-projection kernels (issue 5): projections per second on one core for every constraint type, and how the
+// Constraint-projection kernels: projections per second on one core for every constraint type, and how the
 // cost of a sweep grows with the vertex count, 10³ to 10⁶ vertices (benchmark's complexity fit, BigO lines).
 // Run: scripts/bench-kernels.sh (builds, runs with a short min time, prints M projections/s and scaling exponents),
 // or build-*/bench/kernels_bench [--benchmark_filter=Internal].

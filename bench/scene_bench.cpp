@@ -1,5 +1,5 @@
 // Benchmarks of scene loading: the "auto" collision pairs (which templates come within a distance) on a synthetic
-// scene of 24 structures of about 2500 vertices each, as in issue 4's scaling scene, and on the bundled thigh.
+// scene of 24 structures of about 2500 vertices each (the size of the 24-structure phantom), and on the bundled thigh.
 // Run: build/bench/scene_bench
 #include <benchmark/benchmark.h>
 

@@ -26,9 +26,8 @@ Eigen::VectorXd scoreWeights(const Eigen::VectorXd& scores) {
 /// Moves each target toward its vertex until it is at most `edges` local edge lengths (the vertex's mean distance to
 /// its three neighbours) away: a limit on the image step, so that no vertex moves more than about γ × `edges` mesh
 /// spacings per step. Targets a muscle cannot reach (at a partner, or where a septum is missing) otherwise pull at
-/// full length step after step, and the surface buckles between them: on the thigh phantoms 350–1000 folded dual
-/// edges per muscle without the limit, 35–55 % fewer with 1 edge, with equal or better Dice. Limiting only a vertex's
-/// step relative to its neighbours' mean step was tried and does not help: the absolute step matters.
+/// full length step after step, and the surface buckles between them (docs/method.md, Surface quality). What matters
+/// is the absolute step: a limit relative to the neighbours' mean step does not keep the surface from folding.
 void limitTargetStep(const SimplexMesh& mesh, double edges, Points& targets) {
   const Points& p = mesh.positions;
   for (int v = 0; v < mesh.vertexCount(); ++v) {

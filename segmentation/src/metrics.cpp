@@ -16,7 +16,7 @@
 #include "msk/imaging/filters.h"
 #include "msk/imaging/rasterize.h"
 
-// Definitions (also in the README)
+// Definitions (also in docs/measurements.md)
 // --------------------------------
 // Overlap, for object sets A and B:
 //   dice = 2|A∩B| / (|A|+|B|), jaccard = |A∩B| / |A∪B|; both are 1 when A and B are both empty.

@@ -1,6 +1,6 @@
 #pragma once
 /// The speed/accuracy trade as a picture: error against time, one marker per setting, the Pareto front drawn
-/// (`mskseg bench tradeoff`, issue 5).
+/// (`mskseg bench tradeoff`).
 #include <string>
 #include <vector>
 

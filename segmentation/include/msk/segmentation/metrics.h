@@ -1,5 +1,5 @@
 #pragma once
-/// Segmentation metrics between label maps and between meshes, in mm (definitions in the README).
+/// Segmentation metrics between label maps and between meshes, in mm (definitions in docs/measurements.md).
 #include <cstdint>
 
 #include "msk/core/triangle_mesh.h"

@@ -35,12 +35,12 @@ struct ObjectModel {
   double radialStiffness = -1;    ///< "radial_stiffness": γ of the radial constraints, [0, 1]; < 0 = run default
   double axisSpacingMm = -1;      ///< "axis_spacing_mm": distance between axis vertices, mm, > 0; < 0 = run default
   /// "axis_first": run the axis-first coarse stage (the object moves as a generalised cylinder of its axis before its
-  /// full-surface evolution; needs "medial_axis"); unset = the run's (SegmentOptions::axisFirst)
+  /// full-surface evolution; needs "medial_axis"); unset = the run's (AxisOptions::first)
   std::optional<bool> axisFirst;
-  /// "refine": the object takes part in the refinement pass (SegmentOptions::refinePass: its converged surface as its
+  /// "refine": the object takes part in the refinement pass (ImageSearchOptions::refinePass: its converged surface as its
   /// reference shape, the gradient force with the edge level); unset = the run's
   std::optional<bool> refine;
-  /// "remesh": the template is remeshed isotropically before the evolution (SegmentOptions::remeshTemplates); false
+  /// "remesh": the template is remeshed isotropically before the evolution (SurfaceOptions::remeshTemplates); false
   /// keeps its own triangulation (the output is then on it); unset = the run's for muscles and generic objects, kept
   /// for bones (segmenter.h)
   std::optional<bool> remesh;
@@ -86,7 +86,7 @@ struct CollisionPair {
   double friction = -1;      ///< "friction": μ ∈ [0, 1]
   CollisionMode mode = CollisionMode::Position;      ///< "mode": "position" | "velocity" | "acceleration"
   CollisionTarget target = CollisionTarget::Spring;  ///< "target": "spring" | "reaction" | "reference"
-  /// "resolution": "sequential" | "global"; unset = the run's (SegmentOptions::collisionResolution)
+  /// "resolution": "sequential" | "global"; unset = the run's (CollisionOptions::resolution)
   std::optional<CollisionResolution> resolution = std::nullopt;
   bool fromAuto = false;     ///< found by an "auto" entry (templates within its distance), not declared by name
 };
