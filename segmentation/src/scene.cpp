@@ -247,48 +247,50 @@ void parsePairParameters(const Checker& check, const Json& e, const std::string&
     p.resolution = static_cast<CollisionResolution>(r);
 }
 
-}  // namespace
+/// Object `i` of the scene's "objects" (every key checked; its template not read yet). `byName` and `byLabel` record
+/// the objects before it (duplicates are errors).
+SceneObject parseObject(const Checker& check, const Json& o, size_t i, const fs::path& folder, const Scene& scene,
+                        std::map<std::string, size_t>& byName, std::map<int, size_t>& byLabel) {
+  const std::vector<std::string> kinds = {"bone", "muscle", "generic"};
+  const std::vector<std::string> polarities = {"auto", "dark-inside", "bright-inside"};
+  if (!o.is_object()) check.fail(objectWhere(i, ""), std::string("expected an object, found ") + o.type_name());
+  // The name first, so that every later message can show it.
+  std::string name;
+  if (const Json* n = jsonMember(o, "name"); n && n->is_string()) name = n->get<std::string>();
+  const std::string where = objectWhere(i, name);
+  check.knownKeys(o, kObjectKeys, where, "key");
 
-ObjectModel defaultModel(ObjectKind k) {
-  // Every kind gets what the segmenter does today; muscles will get a medial axis and a volume model (and possibly
-  // the profile force) once the pipeline uses them: change it here, in one place.
-  ObjectModel m;
-  switch (k) {
-    case ObjectKind::Bone:
-    case ObjectKind::Muscle:
-    case ObjectKind::Generic:
-      m.shapeMemory = InternalMode::ShapeMemory;
-      m.imageForce = TargetMode::Gradient;
-      m.medialAxis = false;
-      m.volumetric = false;
-      break;
+  SceneObject obj;
+  obj.name = *check.string(o, "name", where, true);
+  if (auto it = byName.find(obj.name); it != byName.end())
+    check.fail(where, "duplicate name \"" + obj.name + "\" (also " + objectWhere(it->second, obj.name) + ")");
+  byName[obj.name] = i;
+
+  const Json* label = jsonMember(o, "label");
+  if (!label) check.fail(where, "missing key \"label\"");
+  if (!label->is_number() || label->get<double>() != std::floor(label->get<double>()) || label->get<double>() < 1 ||
+      label->get<double>() > 32767)
+    check.fail(where, "\"label\" must be an integer in 1..32767, found " + shown(*label));
+  obj.label = jsonInt(*label);
+  if (auto it = byLabel.find(obj.label); it != byLabel.end())
+    check.fail(where, "duplicate label " + std::to_string(obj.label) + " (also " +
+                          objectWhere(it->second, scene.objects[it->second].name) + ")");
+  byLabel[obj.label] = i;
+
+  obj.kind = static_cast<ObjectKind>(check.choice(o, "kind", kinds, where, true));
+  const fs::path templ(*check.string(o, "template", where, true));
+  obj.templatePath = (templ.is_absolute() ? templ : folder / templ).lexically_normal().string();
+  if (const int p = check.choice(o, "polarity", polarities, where, false); p >= 0) {
+    obj.hasPolarity = true;
+    obj.polarity = p == 0 ? Polarity::Auto : p == 1 ? Polarity::DarkInside : Polarity::BrightInside;
   }
-  return m;
+  obj.model = parseModel(check, o, where, obj);
+  obj.profileSource = parseProfileSource(check, o, where, obj);
+  return obj;
 }
 
-const char* objectKindName(ObjectKind k) {
-  switch (k) {
-    case ObjectKind::Bone: return "bone";
-    case ObjectKind::Muscle: return "muscle";
-    case ObjectKind::Generic: return "generic";
-  }
-  return "?";
-}
-
-Scene parseScene(const Json& json, const std::string& path) {
-  const Checker check(path);
-  if (!json.is_object()) check.fail("", std::string("a scene must be a JSON object, found ") + json.type_name());
-  check.knownKeys(json, kTopKeys, "", "top-level key");
-
-  Scene scene;
-  scene.path = path;
-  if (const std::string* d = check.string(json, "description", "", false)) scene.description = *d;
-  if (const Json* v = jsonMember(json, "provenance")) {
-    if (!v->is_object()) check.fail("", std::string("\"provenance\" must be an object, found ") + v->type_name());
-    scene.provenance = *v;
-  }
-
-  // Objects: every key checked first (cheap errors before any template is read).
+/// The scene's objects, checked in file order before any template is read (cheap errors first).
+void parseObjects(const Checker& check, const Json& json, const std::string& path, Scene& scene) {
   const Json* objects = jsonMember(json, "objects");
   if (!objects) check.fail("", "missing key \"objects\"");
   if (!objects->is_array()) check.fail("", std::string("\"objects\" must be an array, found ") + objects->type_name());
@@ -296,48 +298,16 @@ Scene parseScene(const Json& json, const std::string& path) {
   const fs::path folder = fs::path(path).parent_path();
   std::map<std::string, size_t> byName;
   std::map<int, size_t> byLabel;
-  const std::vector<std::string> kinds = {"bone", "muscle", "generic"};
-  const std::vector<std::string> polarities = {"auto", "dark-inside", "bright-inside"};
-  for (size_t i = 0; i < objects->size(); ++i) {
-    const Json& o = (*objects)[i];
-    if (!o.is_object()) check.fail(objectWhere(i, ""), std::string("expected an object, found ") + o.type_name());
-    // The name first, so that every later message can show it.
-    std::string name;
-    if (const Json* n = jsonMember(o, "name"); n && n->is_string()) name = n->get<std::string>();
-    const std::string where = objectWhere(i, name);
-    check.knownKeys(o, kObjectKeys, where, "key");
+  for (size_t i = 0; i < objects->size(); ++i)
+    scene.objects.push_back(parseObject(check, (*objects)[i], i, folder, scene, byName, byLabel));
+}
 
-    SceneObject obj;
-    obj.name = *check.string(o, "name", where, true);
-    if (auto it = byName.find(obj.name); it != byName.end())
-      check.fail(where, "duplicate name \"" + obj.name + "\" (also " + objectWhere(it->second, obj.name) + ")");
-    byName[obj.name] = i;
-
-    const Json* label = jsonMember(o, "label");
-    if (!label) check.fail(where, "missing key \"label\"");
-    if (!label->is_number() || label->get<double>() != std::floor(label->get<double>()) || label->get<double>() < 1 ||
-        label->get<double>() > 32767)
-      check.fail(where, "\"label\" must be an integer in 1..32767, found " + shown(*label));
-    obj.label = jsonInt(*label);
-    if (auto it = byLabel.find(obj.label); it != byLabel.end())
-      check.fail(where, "duplicate label " + std::to_string(obj.label) + " (also " +
-                            objectWhere(it->second, scene.objects[it->second].name) + ")");
-    byLabel[obj.label] = i;
-
-    obj.kind = static_cast<ObjectKind>(check.choice(o, "kind", kinds, where, true));
-    const fs::path templ(*check.string(o, "template", where, true));
-    obj.templatePath = (templ.is_absolute() ? templ : folder / templ).lexically_normal().string();
-    if (const int p = check.choice(o, "polarity", polarities, where, false); p >= 0) {
-      obj.hasPolarity = true;
-      obj.polarity = p == 0 ? Polarity::Auto : p == 1 ? Polarity::DarkInside : Polarity::BrightInside;
-    }
-    obj.model = parseModel(check, o, where, obj);
-    obj.profileSource = parseProfileSource(check, o, where, obj);
-    scene.objects.push_back(std::move(obj));
-  }
-
-  // Collisions: entries checked before any template is read; auto pairs found after.
+/// The scene's "collisions": the pairs declared by name (into scene.collisions) and the "auto" entry (into
+/// scene.autoCollisions; its pairs are found once the templates are read). Returns the pairs declared by name.
+std::map<std::pair<int, int>, size_t> parseCollisions(const Checker& check, const Json& json, Scene& scene) {
   std::map<std::pair<int, int>, size_t> declared;  // pair → entry that declared it
+  std::map<std::string, size_t> byName;
+  for (size_t i = 0; i < scene.objects.size(); ++i) byName[scene.objects[i].name] = i;
   bool wantAuto = false;
   double autoWithinMm = kAutoWithinMm;
   CollisionPair autoParameters;
@@ -406,8 +376,12 @@ Scene parseScene(const Json& json, const std::string& path) {
       scene.collisions.push_back(p);
     }
   }
+  if (wantAuto) scene.autoCollisions = AutoCollisions{autoWithinMm, autoParameters};
+  return declared;
+}
 
-  // Templates last: read (SPACE tag honoured, closedness checked) and errors wrapped to name the object.
+/// Reads every object's template (SPACE tag honoured, closedness checked), errors naming the object.
+void readTemplates(const Checker& check, Scene& scene) {
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     SceneObject& obj = scene.objects[i];
     try {
@@ -418,10 +392,13 @@ Scene parseScene(const Json& json, const std::string& path) {
       check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + e.what());
     }
   }
+}
 
-  // Auto pairs: every pair of templates within the distance (or overlapping) not declared by name.
-  if (wantAuto) {
-    scene.autoCollisions = AutoCollisions{autoWithinMm, autoParameters};
+/// The "auto" entry's pairs: every pair of templates within its distance (or overlapping) not declared by name.
+void addAutoPairs(Scene& scene, const std::map<std::pair<int, int>, size_t>& declared) {
+  if (scene.autoCollisions) {
+    const double autoWithinMm = scene.autoCollisions->withinMm;
+    const CollisionPair& autoParameters = scene.autoCollisions->parameters;
     std::vector<const TriangleMesh*> templates;
     for (const auto& o : scene.objects) templates.push_back(&o.templ);
     for (const auto& [a, b] : surfacesWithin(templates, autoWithinMm)) {
@@ -433,6 +410,51 @@ Scene parseScene(const Json& json, const std::string& path) {
       scene.collisions.push_back(p);
     }
   }
+}
+
+}  // namespace
+
+ObjectModel defaultModel(ObjectKind k) {
+  // Every kind gets what the segmenter does today; muscles will get a medial axis and a volume model (and possibly
+  // the profile force) once the pipeline uses them: change it here, in one place.
+  ObjectModel m;
+  switch (k) {
+    case ObjectKind::Bone:
+    case ObjectKind::Muscle:
+    case ObjectKind::Generic:
+      m.shapeMemory = InternalMode::ShapeMemory;
+      m.imageForce = TargetMode::Gradient;
+      m.medialAxis = false;
+      m.volumetric = false;
+      break;
+  }
+  return m;
+}
+
+const char* objectKindName(ObjectKind k) {
+  switch (k) {
+    case ObjectKind::Bone: return "bone";
+    case ObjectKind::Muscle: return "muscle";
+    case ObjectKind::Generic: return "generic";
+  }
+  return "?";
+}
+
+Scene parseScene(const Json& json, const std::string& path) {
+  const Checker check(path);
+  if (!json.is_object()) check.fail("", std::string("a scene must be a JSON object, found ") + json.type_name());
+  check.knownKeys(json, kTopKeys, "", "top-level key");
+  Scene scene;
+  scene.path = path;
+  if (const std::string* d = check.string(json, "description", "", false)) scene.description = *d;
+  if (const Json* v = jsonMember(json, "provenance")) {
+    if (!v->is_object()) check.fail("", std::string("\"provenance\" must be an object, found ") + v->type_name());
+    scene.provenance = *v;
+  }
+  parseObjects(check, json, path, scene);
+  const std::map<std::pair<int, int>, size_t> declared = parseCollisions(check, json, scene);
+  readTemplates(check, scene);
+  addAutoPairs(scene, declared);
   return scene;
 }
 
