@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "msk/core/error.h"
+#include "vtk_mesh.h"
 
 namespace msk {
 
@@ -28,24 +29,6 @@ namespace {
 
 template <typename T>
 using Ptr = vtkSmartPointer<T>;
-
-Ptr<vtkPolyData> toVtk(const TriangleMesh& mesh) {
-  auto points = Ptr<vtkPoints>::New();
-  points->SetDataTypeToDouble();
-  points->SetNumberOfPoints(mesh.vertexCount());
-  for (int i = 0; i < mesh.vertexCount(); ++i)
-    points->SetPoint(i, mesh.vertices(i, 0), mesh.vertices(i, 1), mesh.vertices(i, 2));
-  auto polys = Ptr<vtkCellArray>::New();
-  polys->AllocateExact(mesh.faceCount(), 3 * mesh.faceCount());
-  for (int f = 0; f < mesh.faceCount(); ++f) {
-    const vtkIdType ids[3] = {mesh.faces(f, 0), mesh.faces(f, 1), mesh.faces(f, 2)};
-    polys->InsertNextCell(3, ids);
-  }
-  auto poly = Ptr<vtkPolyData>::New();
-  poly->SetPoints(points);
-  poly->SetPolys(polys);
-  return poly;
-}
 
 /// Triangles of a vtkPolyData (polygons fan-triangulated), points copied as they are.
 TriangleMesh fromVtk(vtkPolyData* poly) {
@@ -433,7 +416,7 @@ TriangleMesh smoothMesh(const TriangleMesh& mesh, int iterations, double passBan
   if (!(passBand > 0 && passBand < 2)) throw ParameterError("passBand", std::to_string(passBand), "must be in (0, 2)");
   if (iterations == 0 || mesh.vertexCount() == 0) return mesh;
   auto filter = Ptr<vtkWindowedSincPolyDataFilter>::New();
-  filter->SetInputData(toVtk(mesh));
+  filter->SetInputData(detail::toPolyData(mesh));
   filter->SetNumberOfIterations(iterations);
   filter->SetPassBand(passBand);
   filter->BoundarySmoothingOff();
