@@ -1,4 +1,5 @@
-// VTK adapter behind msk/imaging/surface_extraction.h: VTK types stay in this file.
+// VTK adapter behind msk/imaging/surface_extraction.h (decimateMesh() is in surface_decimation.cpp): VTK types stay in
+// this file and vtk_mesh.h.
 #include "msk/imaging/surface_extraction.h"
 
 #include <vtkCellArray.h>
@@ -11,16 +12,15 @@
 #include <vtkSmartPointer.h>
 #include <vtkWindowedSincPolyDataFilter.h>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <numeric>
-#include <queue>
 #include <unordered_map>
 #include <vector>
 
 #include "msk/core/error.h"
+#include "vtk_mesh.h"
 
 namespace msk {
 
@@ -28,24 +28,6 @@ namespace {
 
 template <typename T>
 using Ptr = vtkSmartPointer<T>;
-
-Ptr<vtkPolyData> toVtk(const TriangleMesh& mesh) {
-  auto points = Ptr<vtkPoints>::New();
-  points->SetDataTypeToDouble();
-  points->SetNumberOfPoints(mesh.vertexCount());
-  for (int i = 0; i < mesh.vertexCount(); ++i)
-    points->SetPoint(i, mesh.vertices(i, 0), mesh.vertices(i, 1), mesh.vertices(i, 2));
-  auto polys = Ptr<vtkCellArray>::New();
-  polys->AllocateExact(mesh.faceCount(), 3 * mesh.faceCount());
-  for (int f = 0; f < mesh.faceCount(); ++f) {
-    const vtkIdType ids[3] = {mesh.faces(f, 0), mesh.faces(f, 1), mesh.faces(f, 2)};
-    polys->InsertNextCell(3, ids);
-  }
-  auto poly = Ptr<vtkPolyData>::New();
-  poly->SetPoints(points);
-  poly->SetPolys(polys);
-  return poly;
-}
 
 /// Triangles of a vtkPolyData (polygons fan-triangulated), points copied as they are.
 TriangleMesh fromVtk(vtkPolyData* poly) {
@@ -153,194 +135,6 @@ void keepLargestComponent(TriangleMesh& m) {
   mergeAndCompact(m);  // drops the vertices no longer used
 }
 
-// Garland–Heckbert quadric error metric edge collapse ("Surface simplification using quadric error metrics",
-// SIGGRAPH 1997), with Lindstrom's SVD placement and the link condition of Dey et al. ("Topology preserving edge
-// contraction", 1999), so a closed 2-manifold stays a closed 2-manifold; collapses that would flip a face are refused.
-class QemDecimator {
- public:
-  explicit QemDecimator(const TriangleMesh& m)
-      : pos_(m.vertices),
-        faces_(m.faces),
-        faceAlive_(static_cast<size_t>(m.faceCount()), 1),
-        vertexAlive_(static_cast<size_t>(m.vertexCount()), 1),
-        stamp_(static_cast<size_t>(m.vertexCount()), 0),
-        vf_(static_cast<size_t>(m.vertexCount())),
-        q_(static_cast<size_t>(m.vertexCount())) {
-    alive_ = m.vertexCount();
-    for (int f = 0; f < m.faceCount(); ++f) {
-      for (int k = 0; k < 3; ++k) vf_[static_cast<size_t>(faces_(f, k))].push_back(f);
-      const Eigen::Vector3d a = pos_.row(faces_(f, 0)), b = pos_.row(faces_(f, 1)), c = pos_.row(faces_(f, 2));
-      Eigen::Vector3d n = (b - a).cross(c - a);
-      const double area2 = n.norm();
-      if (area2 <= 0) continue;
-      n /= area2;
-      const double d = -n.dot(a), w = 0.5 * area2;
-      Quadric fq;
-      fq.A = w * n * n.transpose();
-      fq.b = w * d * n;
-      fq.c = w * d * d;
-      for (int k = 0; k < 3; ++k) q_[static_cast<size_t>(faces_(f, k))] += fq;
-    }
-    for (int f = 0; f < m.faceCount(); ++f)
-      for (int k = 0; k < 3; ++k) {
-        const int a = faces_(f, k), b = faces_(f, (k + 1) % 3);
-        if (a < b) push(a, b);  // each undirected edge of a closed oriented mesh once
-      }
-  }
-
-  void run(int target) {
-    while (alive_ > target && !heap_.empty()) {
-      const Candidate c = heap_.top();
-      heap_.pop();
-      const size_t u = static_cast<size_t>(c.u), v = static_cast<size_t>(c.v);
-      if (!vertexAlive_[u] || !vertexAlive_[v] || stamp_[u] != c.su || stamp_[v] != c.sv) continue;
-      collapse(c.u, c.v, c.x);
-    }
-  }
-
-  TriangleMesh result() const {
-    TriangleMesh out;
-    std::vector<int> id(vertexAlive_.size(), -1);
-    int n = 0;
-    for (size_t i = 0; i < vertexAlive_.size(); ++i)
-      if (vertexAlive_[i]) id[i] = n++;
-    out.vertices.resize(n, 3);
-    for (size_t i = 0; i < vertexAlive_.size(); ++i)
-      if (vertexAlive_[i]) out.vertices.row(id[i]) = pos_.row(static_cast<Eigen::Index>(i));
-    int nf = 0;
-    for (uint8_t a : faceAlive_) nf += a;
-    out.faces.resize(nf, 3);
-    int r = 0;
-    for (int f = 0; f < faces_.rows(); ++f) {
-      if (!faceAlive_[static_cast<size_t>(f)]) continue;
-      for (int k = 0; k < 3; ++k) out.faces(r, k) = id[static_cast<size_t>(faces_(f, k))];
-      ++r;
-    }
-    return out;
-  }
-
- private:
-  struct Quadric {
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    double c = 0;
-    Quadric& operator+=(const Quadric& o) {
-      A += o.A;
-      b += o.b;
-      c += o.c;
-      return *this;
-    }
-    double error(const Eigen::Vector3d& x) const { return x.dot(A * x) + 2 * b.dot(x) + c; }
-  };
-  struct Candidate {
-    double cost;
-    int u, v;
-    uint32_t su, sv;
-    Eigen::Vector3d x;
-    bool operator<(const Candidate& o) const { return cost > o.cost; }  // min-heap
-  };
-
-  void push(int u, int v) {
-    Quadric q = q_[static_cast<size_t>(u)];
-    q += q_[static_cast<size_t>(v)];
-    // Minimiser closest to the edge midpoint: truncated pseudo-inverse (Lindstrom 2000).
-    const Eigen::Vector3d mid = 0.5 * (pos_.row(u) + pos_.row(v)).transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(q.A);
-    const Eigen::Vector3d lambda = es.eigenvalues();
-    const double lmax = lambda.cwiseAbs().maxCoeff();
-    Eigen::Vector3d x = mid;
-    const Eigen::Vector3d r = -q.b - q.A * mid;
-    for (int i = 0; i < 3; ++i)
-      if (lambda[i] > 1e-3 * lmax && lmax > 0)
-        x += es.eigenvectors().col(i) * (es.eigenvectors().col(i).dot(r) / lambda[i]);
-    heap_.push({std::max(0.0, q.error(x)), u, v, stamp_[static_cast<size_t>(u)], stamp_[static_cast<size_t>(v)], x});
-  }
-
-  void aliveFaces(int v, std::vector<int>& out) const {
-    out.clear();
-    for (int f : vf_[static_cast<size_t>(v)])
-      if (faceAlive_[static_cast<size_t>(f)]) out.push_back(f);
-  }
-
-  void neighbours(const std::vector<int>& faces, int v, std::vector<int>& out) const {
-    out.clear();
-    for (int f : faces)
-      for (int k = 0; k < 3; ++k) {
-        const int w = faces_(f, k);
-        if (w != v && std::find(out.begin(), out.end(), w) == out.end()) out.push_back(w);
-      }
-  }
-
-  // True if moving the corners equal to u or v of `f` to x keeps its normal (no fold-over, no sliver flip).
-  bool keepsOrientation(int f, int u, int v, const Eigen::Vector3d& x) const {
-    Eigen::Vector3d p[3], q[3];
-    for (int k = 0; k < 3; ++k) {
-      const int w = faces_(f, k);
-      p[k] = pos_.row(w).transpose();
-      q[k] = (w == u || w == v) ? x : p[k];
-    }
-    const Eigen::Vector3d n0 = (p[1] - p[0]).cross(p[2] - p[0]), n1 = (q[1] - q[0]).cross(q[2] - q[0]);
-    const double l0 = n0.norm(), l1 = n1.norm();
-    if (l1 <= 1e-12 * (l0 + 1e-300)) return false;
-    return n0.dot(n1) > 0.2 * l0 * l1;
-  }
-
-  void collapse(int u, int v, const Eigen::Vector3d& x) {
-    aliveFaces(u, fu_);
-    aliveFaces(v, fv_);
-    neighbours(fu_, u, nu_);
-    neighbours(fv_, v, nv_);
-    // Link condition: exactly the two vertices opposite the edge are common neighbours.
-    int common = 0;
-    for (int w : nu_)
-      if (std::find(nv_.begin(), nv_.end(), w) != nv_.end()) {
-        ++common;
-        aliveFaces(w, tmp_);
-        if (tmp_.size() <= 3) return;  // w would drop to valence 2
-      }
-    if (common != 2) return;
-    if (static_cast<int>(nu_.size() + nv_.size()) - 4 < 3) return;  // u would end with valence < 3
-    for (int f : fu_)
-      if (!(faces_(f, 0) == v || faces_(f, 1) == v || faces_(f, 2) == v) && !keepsOrientation(f, u, v, x)) return;
-    for (int f : fv_)
-      if (!(faces_(f, 0) == u || faces_(f, 1) == u || faces_(f, 2) == u) && !keepsOrientation(f, u, v, x)) return;
-    // Collapse v into u.
-    std::vector<int>& listU = vf_[static_cast<size_t>(u)];
-    listU.clear();
-    for (int f : fu_) {
-      if (faces_(f, 0) == v || faces_(f, 1) == v || faces_(f, 2) == v)
-        faceAlive_[static_cast<size_t>(f)] = 0;
-      else
-        listU.push_back(f);
-    }
-    for (int f : fv_) {
-      if (!faceAlive_[static_cast<size_t>(f)]) continue;
-      for (int k = 0; k < 3; ++k)
-        if (faces_(f, k) == v) faces_(f, k) = u;
-      listU.push_back(f);
-    }
-    vf_[static_cast<size_t>(v)].clear();
-    vertexAlive_[static_cast<size_t>(v)] = 0;
-    --alive_;
-    pos_.row(u) = x.transpose();
-    q_[static_cast<size_t>(u)] += q_[static_cast<size_t>(v)];
-    ++stamp_[static_cast<size_t>(u)];
-    neighbours(listU, u, nu_);
-    for (int w : nu_) push(std::min(u, w), std::max(u, w));
-  }
-
-  Points pos_;
-  Triangles faces_;
-  std::vector<uint8_t> faceAlive_, vertexAlive_;
-  std::vector<uint32_t> stamp_;
-  std::vector<std::vector<int>> vf_;
-  std::vector<Quadric> q_;
-  std::priority_queue<Candidate> heap_;
-  int alive_ = 0;
-  std::vector<int> fu_, fv_, nu_, nv_, tmp_;  // scratch
-};
-
 void orientOutward(TriangleMesh& m) {
   if (m.faceCount() > 0 && enclosedVolume(m) < 0) flipFaces(m);
 }
@@ -415,25 +209,12 @@ TriangleMesh isosurface(const ImageF& field, double level, const IsosurfaceOptio
   return m;
 }
 
-TriangleMesh decimateMesh(const TriangleMesh& mesh, int targetVertices) {
-  if (targetVertices < 4) throw ParameterError("targetVertices", std::to_string(targetVertices), "must be at least 4");
-  const std::string inProblem = closedMeshProblem(mesh);
-  if (!inProblem.empty()) throw Error("decimateMesh: input mesh is not closed: " + inProblem);
-  if (mesh.vertexCount() <= targetVertices) return mesh;
-  QemDecimator qem(mesh);
-  qem.run(targetVertices);
-  TriangleMesh m = qem.result();
-  const std::string problem = closedMeshProblem(m);
-  MSK_ASSERT(problem.empty(), "decimation broke the manifold: " + problem);
-  return m;
-}
-
 TriangleMesh smoothMesh(const TriangleMesh& mesh, int iterations, double passBand) {
   if (iterations < 0) throw ParameterError("iterations", std::to_string(iterations), "must be >= 0");
   if (!(passBand > 0 && passBand < 2)) throw ParameterError("passBand", std::to_string(passBand), "must be in (0, 2)");
   if (iterations == 0 || mesh.vertexCount() == 0) return mesh;
   auto filter = Ptr<vtkWindowedSincPolyDataFilter>::New();
-  filter->SetInputData(toVtk(mesh));
+  filter->SetInputData(detail::toPolyData(mesh));
   filter->SetNumberOfIterations(iterations);
   filter->SetPassBand(passBand);
   filter->BoundarySmoothingOff();

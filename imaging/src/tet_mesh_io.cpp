@@ -1,26 +1,23 @@
-// Tet mesh files through VTK's XML unstructured-grid reader and writer (VTK confined to this file).
+// Tet mesh files through VTK's XML unstructured-grid reader and writer (VTK confined to this file and vtk_mesh.h).
 #include "msk/imaging/tet_mesh_io.h"
 
 #include <vtkCallbackCommand.h>
 #include <vtkCellArray.h>
 #include <vtkCellType.h>
 #include <vtkCommand.h>
-#include <vtkFieldData.h>
 #include <vtkIdList.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
-#include <vtkStringArray.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
-#include <filesystem>
 #include <string>
 
+#include "mesh_io_detail.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
-
-namespace fs = std::filesystem;
+#include "vtk_mesh.h"
 
 namespace msk {
 
@@ -30,17 +27,12 @@ namespace {
 /// that `algorithm` reports kept, so a failure is detected even when VTK returns an empty output.
 class VtkErrorTrap {
  public:
-  explicit VtkErrorTrap(vtkAlgorithm* algorithm)
-      : algorithm_(algorithm), wasDisplayed_(vtkObject::GetGlobalWarningDisplay()) {
-    vtkObject::GlobalWarningDisplayOff();
+  explicit VtkErrorTrap(vtkAlgorithm* algorithm) : algorithm_(algorithm) {
     callback_->SetClientData(this);
     callback_->SetCallback(&VtkErrorTrap::record);
     errorTag_ = algorithm_->AddObserver(vtkCommand::ErrorEvent, callback_);
   }
-  ~VtkErrorTrap() {
-    algorithm_->RemoveObserver(errorTag_);
-    vtkObject::SetGlobalWarningDisplay(wasDisplayed_);
-  }
+  ~VtkErrorTrap() { algorithm_->RemoveObserver(errorTag_); }
   VtkErrorTrap(const VtkErrorTrap&) = delete;
   VtkErrorTrap& operator=(const VtkErrorTrap&) = delete;
   /// True if an error was reported.
@@ -58,8 +50,8 @@ class VtkErrorTrap {
       trap->message_ = trap->message_.substr(0, trap->message_.find('\n'));
     }
   }
+  detail::VtkQuiet quiet_;  // first member: printing is off before the observer is added and on after it is removed
   vtkAlgorithm* algorithm_;
-  int wasDisplayed_;
   vtkNew<vtkCallbackCommand> callback_;
   unsigned long errorTag_ = 0;
   bool failed_ = false;
@@ -100,10 +92,7 @@ void writeTetMesh(const std::string& path, const TetMesh& rasMesh, MeshSpace spa
   vtkNew<vtkUnstructuredGrid> grid;
   grid->SetPoints(points);
   grid->SetCells(VTK_TETRA, cells);
-  vtkNew<vtkStringArray> tag;
-  tag->SetName("SPACE");
-  tag->InsertNextValue(meshSpaceName(space));
-  grid->GetFieldData()->AddArray(tag);
+  detail::addSpaceField(grid->GetFieldData(), space);
 
   writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkXMLUnstructuredGridWriter> w;
@@ -120,9 +109,7 @@ void writeTetMesh(const std::string& path, const TetMesh& rasMesh, MeshSpace spa
 
 TetMesh readTetMesh(const std::string& path, MeshSpace* fileSpace) {
   checkExtension(path);
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw IoError(path, "file does not exist");
-  if (!fs::is_regular_file(path, ec)) throw IoError(path, "not a regular file");
+  detail::requireRegularFile(path);
 
   TetMesh mesh;
   MeshSpace space = MeshSpace::LPS;  // untagged files are LPS
@@ -137,15 +124,7 @@ TetMesh readTetMesh(const std::string& path, MeshSpace* fileSpace) {
       throw IoError(path, "cannot read the file as a VTK XML unstructured grid (unreadable, corrupt or empty)" +
                               (trap.message().empty() ? "" : std::string(": ") + trap.message()));
 
-    if (vtkFieldData* fd = grid->GetFieldData())
-      if (auto* s = vtkStringArray::SafeDownCast(fd->GetAbstractArray("SPACE")); s && s->GetNumberOfValues() > 0) {
-        const std::string value = s->GetValue(0);
-        try {
-          space = parseMeshSpace(value);
-        } catch (const ParameterError&) {
-          throw IoError(path, "unknown coordinate space '" + value + "' in field data SPACE (expected LPS or RAS)");
-        }
-      }
+    detail::fieldDataSpace(grid->GetFieldData(), path, space);
 
     const vtkIdType n = grid->GetNumberOfPoints(), cellCount = grid->GetNumberOfCells();
     mesh.nodes.resize(n, 3);

@@ -16,8 +16,8 @@
 #include <memory>
 #include <string>
 
-#include "cgal_mesh.h"
 #include "msk/core/error.h"
+#include "msk/imaging/detail/cgal_mesh.h"
 
 namespace msk {
 

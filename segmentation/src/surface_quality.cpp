@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "cgal_mesh.h"
 #include "msk/core/error.h"
+#include "msk/imaging/detail/cgal_mesh.h"
 
 namespace msk {
 

@@ -23,11 +23,11 @@ struct IsosurfaceOptions {
 /// grid border are closed there. Empty mesh if no voxel is inside. The result passes closedMeshProblem().
 TriangleMesh isosurface(const ImageF& field, double level, const IsosurfaceOptions& opts = {});
 
-/// Quadric-error edge-collapse decimation (Garland–Heckbert) of a closed mesh to about `targetVertices` vertices
-/// (returned unchanged if it has no more). Collapses obey the link condition and never flip a face, so the result
-/// stays a closed, outward-oriented manifold of the same genus (it may keep more vertices than asked if no legal
-/// collapse is left). Per-vertex arrays are dropped. Throws Error if the input is not closed, ParameterError if
-/// targetVertices < 4.
+/// Quadric-error edge-collapse decimation (Garland–Heckbert, CGAL's triangle-quadric policies) of a closed mesh to
+/// `targetVertices` vertices (returned unchanged if it has no more). Collapses obey the link condition and turn no
+/// face by more than about 78°, so the result stays a closed, outward-oriented manifold of the same genus (it may keep
+/// more vertices than asked if no legal collapse is left). Deterministic. Per-vertex arrays are dropped. Throws Error
+/// if the input is not closed or has a vertex whose faces do not form one fan, ParameterError if targetVertices < 4.
 TriangleMesh decimateMesh(const TriangleMesh& mesh, int targetVertices);
 
 /// Windowed-sinc (non-shrinking, Taubin-like) smoothing: `iterations` (e.g. 10–30) with pass band `passBand`

@@ -1,5 +1,6 @@
 #pragma once
-/// CGAL adapter (private to msk_segmentation): our triangle meshes as CGAL surface meshes and back.
+/// CGAL adapter, not part of the API: our triangle meshes as CGAL surface meshes and back. Shared by msk_imaging
+/// (decimation) and msk_segmentation (proximity, remeshing, self-intersections); whoever includes it links CGAL.
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
 
