@@ -65,8 +65,8 @@ int cmdEval(const std::vector<std::string>& argv) {
   app.add_option("--result", a, "the segmentation (label map or mesh)")->required();
   app.add_option("--reference", b, "the reference (same kind)")->required();
   app.add_option("--labels", labelsText, "labels to score, e.g. 1,2,3 (default: every label of the reference)");
-  app.add_option("--json", jsonPath, "write the figures as JSON ('-': stdout)");
-  app.add_option("--csv", csvPath, "write the figures as CSV ('-': stdout)");
+  app.add_option("--json", jsonPath, "write the figures as JSON ('-': stdout, instead of the table)");
+  app.add_option("--csv", csvPath, "write the figures as CSV ('-': stdout, instead of the table)");
   addNumber(app, "--voxel", voxel, "grid spacing of the mesh overlap, mm, (0.05, 10] (default 0.5)");
   if (!parseArgs(app, argv)) return 0;
   if (!(voxel > 0.05 && voxel <= 10)) throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
@@ -90,11 +90,13 @@ int cmdEval(const std::vector<std::string>& argv) {
     }
     for (int32_t l : labels) rows.push_back({std::to_string(l), labelMetrics(la, l, lb, l)});
   }
-  std::printf("%-8s %8s %8s %9s %9s %10s %12s %12s\n", "object", "dice", "jaccard", "assd_mm", "hd95_mm", "hausd_mm",
-              "vol_res_mL", "vol_ref_mL");
-  for (const auto& r : rows)
-    std::printf("%-8s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", r.name.c_str(), r.m.dice, r.m.jaccard, r.m.assd,
-                r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
+  if (jsonPath != "-" && csvPath != "-") {  // stdout carries the table unless it carries JSON or CSV
+    std::printf("%-8s %8s %8s %9s %9s %10s %12s %12s\n", "object", "dice", "jaccard", "assd_mm", "hd95_mm",
+                "hausd_mm", "vol_res_mL", "vol_ref_mL");
+    for (const auto& r : rows)
+      std::printf("%-8s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", r.name.c_str(), r.m.dice, r.m.jaccard,
+                  r.m.assd, r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
+  }
   if (!jsonPath.empty()) {
     Json j;
     j["result"] = a;
