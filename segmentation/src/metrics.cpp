@@ -11,7 +11,7 @@
 
 #include <Eigen/Geometry>
 
-#include "cgal_distance.h"
+#include "cgal_aabb.h"
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
 #include "msk/imaging/rasterize.h"
@@ -238,11 +238,13 @@ AreaSamples sampleByArea(const TriangleMesh& mesh, double perMm2) {
 /// Area-weighted distances from the surface of `from` to the surface of `to`; max also over `from`'s vertices.
 DirectedDistances meshDistances(const TriangleMesh& from, const TriangleMesh& to, double perMm2) {
   const AreaSamples s = sampleByArea(from, perMm2);
+  const detail::TriangleDistance tree(to, "point-to-mesh distance");
   DirectedDistances r;
-  r.d = detail::pointToMeshDistances(to, s.points);
+  for (Eigen::Index q = 0; q < s.points.rows(); ++q) r.d.push_back(tree.distance(s.points.row(q).transpose()));
   r.w.assign(r.d.size(), s.areaPerSample);
   r.max = *std::max_element(r.d.begin(), r.d.end());
-  for (double d : detail::pointToMeshDistances(to, from.vertices)) r.max = std::max(r.max, d);
+  for (Eigen::Index v = 0; v < from.vertices.rows(); ++v)
+    r.max = std::max(r.max, tree.distance(from.vertices.row(v).transpose()));
   return r;
 }
 

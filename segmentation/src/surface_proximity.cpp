@@ -1,14 +1,6 @@
-// Surface proximity with CGAL: per surface a Surface_mesh, an AABB tree of its faces (exact point-to-triangle
-// distances) and a ray-parity inside test sharing that tree (CGAL::Side_of_triangle_mesh, which re-shoots a ray
-// that meets an edge or a vertex, so the parity is never miscounted).
+// Surface proximity: per surface the distances to its faces (cgal_aabb.h, exact point-to-triangle distances) and its
+// winding number for inside tests (msk/core/winding_number.h, the inside test of the collision response).
 #include "msk/segmentation/surface_proximity.h"
-
-#include <CGAL/AABB_face_graph_triangle_primitive.h>
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Side_of_triangle_mesh.h>
-#include <CGAL/Surface_mesh.h>
 
 #include <algorithm>
 #include <cmath>
@@ -16,19 +8,13 @@
 #include <memory>
 #include <string>
 
+#include "cgal_aabb.h"
 #include "msk/core/error.h"
-#include "msk/imaging/detail/cgal_mesh.h"
+#include "msk/core/winding_number.h"
 
 namespace msk {
 
 namespace {
-
-using Kernel = detail::CgalKernel;
-using Point = Kernel::Point_3;
-using Mesh = detail::CgalMesh;
-using Primitive = CGAL::AABB_face_graph_triangle_primitive<Mesh>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
-using Side = CGAL::Side_of_triangle_mesh<Mesh, Kernel, CGAL::Default, Tree>;
 
 /// Axis-aligned bounding box of a vertex set, mm.
 struct Box {
@@ -44,34 +30,24 @@ struct Box {
   }
 };
 
-/// One closed surface prepared for distance and inside queries. Not copyable (the tree refers to the mesh).
+/// One closed surface prepared for distance and inside queries.
 class Surface {
  public:
-  explicit Surface(const TriangleMesh& m) : vertices_(m.vertices), box_(m.vertices) {
-    if (m.faceCount() == 0) throw Error("surface proximity: a mesh has no faces");
-    mesh_ = detail::toCgalMesh(m, "surface proximity");
-    tree_ = std::make_unique<Tree>(faces(mesh_).first, faces(mesh_).second, mesh_);
-    tree_->accelerate_distance_queries();
-    side_ = std::make_unique<Side>(*tree_);
-  }
-  Surface(const Surface&) = delete;
-  Surface& operator=(const Surface&) = delete;
-
+  explicit Surface(const TriangleMesh& m)
+      : vertices_(m.vertices), box_(m.vertices), distance_(m, "surface proximity"), winding_(m.vertices, m.faces) {}
   const Points& vertices() const { return vertices_; }
   const Box& box() const { return box_; }
   /// Distance from `p` to the surface, or 0 if `p` is inside or on it.
   double distanceOrInside(const Eigen::Vector3d& p) const {
-    const Point q(p[0], p[1], p[2]);
-    if ((*side_)(q) != CGAL::ON_UNBOUNDED_SIDE) return 0.0;
-    return std::sqrt(tree_->squared_distance(q));
+    const double d = distance_.distance(p);
+    return d == 0 || winding_.inside(p) ? 0.0 : d;
   }
 
  private:
   Points vertices_;
   Box box_;
-  Mesh mesh_;
-  std::unique_ptr<Tree> tree_;
-  std::unique_ptr<Side> side_;
+  detail::TriangleDistance distance_;
+  WindingNumber winding_;
 };
 
 /// Smallest distanceOrInside of the vertices of `from` against `to`, over the vertices inside `to`'s box grown by
