@@ -4,9 +4,10 @@
 
 namespace msk {
 
-Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
-  const ResolvedSettings& s = result.settings;
-  Json j;
+namespace {
+
+/// The schedule and scheme the run resolved (preset applied).
+void addEvolution(Json& j, const SegmentOptions& o, const ResolvedSettings& s) {
   j["quality"] = qualityName(o.evolution.quality);
   j["scheme"] = schemeName(s.solver.scheme);
   j["substeps"] = s.solver.substeps;
@@ -33,6 +34,10 @@ Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
   for (double v : s.rangeMm) rng.push_back(v);
   j["image_sigma_mm_per_level"] = sig;
   j["search_range_mm_per_level"] = rng;
+}
+
+/// Shape memory, global prior and the image force.
+void addShapeAndImage(Json& j, const SegmentOptions& o, const ResolvedSettings& s) {
   j["internal_stiffness"] = o.shape.internalStiffness;
   j["internal_mode"] = o.shape.internalMode == InternalMode::ShapeMemory ? "shape-memory" : "smoothing";
   j["image_stiffness"] = o.image.stiffness;
@@ -53,6 +58,10 @@ Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
   j["unfold_surfaces"] = o.surface.unfoldSurfaces;
   j["refine_sigma_voxels"] = o.image.refineSigma;
   j["muscle_target_step_edges"] = o.image.muscleTargetStepEdges;
+}
+
+/// Contacts, with the response each pair used.
+void addCollisions(Json& j, const SegmentOptions& o, const SegmentationResult& result) {
   j["collisions"] = o.collision.enabled;
   j["collision_gap_mm"] = o.collision.gapMm;
   j["collision_proximity_mm"] = o.collision.proximityMm;
@@ -77,6 +86,10 @@ Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
   j["collision_final_sweeps"] = o.collision.finalSweeps;
   j["separation_sweeps"] = o.collision.separationSweeps;
   j["collision_side_test_every"] = o.collision.sideTestEvery;
+}
+
+/// Medial axes (with what the axis-first stage did), volume models and the time step, damping and drag.
+void addAxisAndVolume(Json& j, const SegmentOptions& o, const SegmentationResult& result) {
   j["radial_stiffness"] = o.axis.radialStiffness;
   j["axis_spacing_mm"] = o.axis.spacingMm;
   j["axis_centering"] = o.axis.centering;
@@ -100,9 +113,19 @@ Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
   }
   j["volume_stiffness"] = o.volume.stiffness;
   j["bone_mass_ratio"] = o.collision.boneMassRatio;
-  j["dt"] = s.solver.dt;
-  j["damping"] = s.solver.damping;
-  j["drag"] = s.solver.drag;
+  j["dt"] = result.settings.solver.dt;
+  j["damping"] = result.settings.solver.damping;
+  j["drag"] = result.settings.solver.drag;
+}
+
+}  // namespace
+
+Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
+  Json j;
+  addEvolution(j, o, result.settings);
+  addShapeAndImage(j, o, result.settings);
+  addCollisions(j, o, result);
+  addAxisAndVolume(j, o, result);
   return j;
 }
 
