@@ -77,6 +77,79 @@ std::string fixed2(double v) {
   return buf;
 }
 
+/// What `mskseg scene` builds: the objects, their templates' options, the mirror plane and the collision pairs.
+struct SceneRequest {
+  std::vector<ObjectSpec> objects;
+  TemplateOptions templates;
+  bool mirror = false;
+  double mirrorX = 0;  ///< mm (RAS)
+  bool refineBones = false;
+  std::string collisions = "auto";
+};
+
+/// x (RAS mm) of the centroid of the voxels of `label`, which must be present.
+double labelCentroidX(const LabelMap& labels, long label) {
+  double sum = 0;
+  long n = 0;
+  const Grid& g = labels.grid;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (labels.at(i, j, k) == label) {
+          sum += g.toWorld(Eigen::Vector3d(i, j, k)).x();
+          ++n;
+        }
+  return sum / static_cast<double>(n);
+}
+
+/// Object `o` of the scene with its template written to `templatePath` (mirrored, with its profiles learned where it
+/// came from, if the request mirrors).
+SceneObject sceneObject(const ObjectSpec& o, const LabelMap& labels, const SceneRequest& r,
+                        const std::string& templatePath) {
+  TemplateReport report;
+  TriangleMesh mesh = templateFromLabels(labels, static_cast<int>(o.from), r.templates, &report);
+  if (r.mirror) mesh = mirrorMesh(mesh, Eigen::Vector3d(r.mirrorX, 0, 0), Eigen::Vector3d::UnitX());
+  SceneObject so;
+  so.name = o.name;
+  so.label = static_cast<int>(o.label);
+  so.kind = o.kind == "bone" ? ObjectKind::Bone : o.kind == "muscle" ? ObjectKind::Muscle : ObjectKind::Generic;
+  so.model = defaultModel(so.kind);
+  so.templatePath = templatePath;
+  writeMesh(so.templatePath, mesh, MeshSpace::LPS);
+  if (r.mirror) {
+    so.hasForce = true;
+    so.force = so.model.imageForce = TargetMode::Profile;
+    Eigen::Matrix4d source = Eigen::Matrix4d::Identity();
+    source(0, 0) = -1;
+    source(0, 3) = 2 * r.mirrorX;
+    so.profileSource = source;
+  }
+  if (r.refineBones && so.kind == ObjectKind::Bone) so.model.refine = true;
+  std::cout << o.name << " (label " << o.label << "): template from label " << o.from << ", " << mesh.vertexCount()
+            << " vertices, " << enclosedVolume(mesh) / 1000.0 << " mL" << (r.mirror ? ", mirrored" : "") << "\n";
+  return so;
+}
+
+/// The scene folder in `dir`: templates/<name>.vtk and scene.json (its provenance the command and the labels file).
+void writeSceneFolder(const std::string& dir, const LabelMap& labels, const SceneRequest& r,
+                      const std::vector<std::string>& argv, const std::string& labelsPath) {
+  std::filesystem::create_directories(dir + "/templates");
+  Scene scene;
+  for (const ObjectSpec& o : r.objects)
+    scene.objects.push_back(sceneObject(o, labels, r, dir + "/templates/" + o.name + ".vtk"));
+  if (r.collisions == "auto") scene.autoCollisions = AutoCollisions{};
+  if (r.collisions == "all")
+    for (size_t a = 0; a < r.objects.size(); ++a)
+      for (size_t b = a + 1; b < r.objects.size(); ++b)
+        scene.collisions.push_back(CollisionPair{static_cast<int>(a), static_cast<int>(b)});
+  Json provenance = Json::object();
+  provenance["generator"] = "mskseg scene";
+  provenance["command"] = commandLineJson("scene", argv);
+  provenance["labels"] = std::filesystem::absolute(labelsPath).string();
+  scene.provenance = provenance;
+  writeScene(scene, dir + "/scene.json");
+}
+
 }  // namespace
 
 int cmdScene(const std::vector<std::string>& argv) {
@@ -85,11 +158,10 @@ int cmdScene(const std::vector<std::string>& argv) {
       "Writes a scene ready for `mskseg segment`/`batch`: OUT/templates/<name>.vtk (LPS), one smooth template per "
       "object built from a label of SEG as `mskseg template` builds it, and OUT/scene.json naming them. The folder "
       "appears whole or not at all.");
-  std::string labelsPath, out, objectsText, collisions = "auto";
+  std::string labelsPath, out, objectsText;
   std::optional<double> mirrorX;
   std::optional<long> midlineLabel;
-  bool refineBones = false;
-  TemplateOptions topts;
+  SceneRequest r;
   app.add_option("--labels", labelsPath, "label map (NIfTI)")->required();
   app.add_option("--objects", objectsText,
                  "comma-separated NAME:LABEL[:FROM][:KIND]: LABEL is the object's label in the results (and in a "
@@ -108,79 +180,30 @@ int cmdScene(const std::vector<std::string>& argv) {
          "the same, across x = the centroid of label L (e.g. the sacrum)")
       ->type_name("L")
       ->excludes(mirrorOption);
-  app.add_option("--collisions", collisions,
+  app.add_option("--collisions", r.collisions,
                  "auto: pairs whose templates come within 2 mm (default); all: every pair; none");
-  app.add_flag("--refine-bones", refineBones, "bones take the refinement pass (\"refine\": true; for CT)");
-  addTemplateOptions(app, topts);
+  app.add_flag("--refine-bones", r.refineBones, "bones take the refinement pass (\"refine\": true; for CT)");
+  addTemplateOptions(app, r.templates);
   if (!parseArgs(app, argv)) return 0;
-  const std::vector<ObjectSpec> objects = parseObjects(objectsText);
-  checkTemplateOptions(topts);
-  if (collisions != "auto" && collisions != "all" && collisions != "none")
-    throw ParameterError("--collisions", collisions, "must be auto, all or none");
+  r.objects = parseObjects(objectsText);
+  checkTemplateOptions(r.templates);
+  if (r.collisions != "auto" && r.collisions != "all" && r.collisions != "none")
+    throw ParameterError("--collisions", r.collisions, "must be auto, all or none");
   if (mirrorX && !std::isfinite(*mirrorX)) throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
   checkOutputFolder(out);
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);
-  for (const ObjectSpec& o : objects) requireLabel(labels, o.from, labelsPath);
-  const bool mirror = mirrorX || midlineLabel;
-  double midX = mirrorX.value_or(0.0);
+  for (const ObjectSpec& o : r.objects) requireLabel(labels, o.from, labelsPath);
+  r.mirror = mirrorX || midlineLabel;
+  r.mirrorX = mirrorX.value_or(0.0);
   if (midlineLabel) {
-    const long m = *midlineLabel;
-    requireLabel(labels, m, labelsPath);
-    double sum = 0;
-    long n = 0;
-    const Grid& g = labels.grid;
-    for (int k = 0; k < g.dims[2]; ++k)
-      for (int j = 0; j < g.dims[1]; ++j)
-        for (int i = 0; i < g.dims[0]; ++i)
-          if (labels.at(i, j, k) == m) {
-            sum += g.toWorld(Eigen::Vector3d(i, j, k)).x();
-            ++n;
-          }
-    midX = sum / static_cast<double>(n);
+    requireLabel(labels, *midlineLabel, labelsPath);
+    r.mirrorX = labelCentroidX(labels, *midlineLabel);
   }
-
-  writeFolderAtomically(out, [&](const std::string& dir) {
-    std::filesystem::create_directories(dir + "/templates");
-    Scene scene;
-    for (const ObjectSpec& o : objects) {
-      TemplateReport report;
-      TriangleMesh mesh = templateFromLabels(labels, static_cast<int>(o.from), topts, &report);
-      if (mirror) mesh = mirrorMesh(mesh, Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
-      SceneObject so;
-      so.name = o.name;
-      so.label = static_cast<int>(o.label);
-      so.kind = o.kind == "bone" ? ObjectKind::Bone : o.kind == "muscle" ? ObjectKind::Muscle : ObjectKind::Generic;
-      so.model = defaultModel(so.kind);
-      so.templatePath = dir + "/templates/" + o.name + ".vtk";
-      writeMesh(so.templatePath, mesh, MeshSpace::LPS);
-      if (mirror) {
-        so.hasForce = true;
-        so.force = so.model.imageForce = TargetMode::Profile;
-        Eigen::Matrix4d source = Eigen::Matrix4d::Identity();
-        source(0, 0) = -1;
-        source(0, 3) = 2 * midX;
-        so.profileSource = source;
-      }
-      if (refineBones && so.kind == ObjectKind::Bone) so.model.refine = true;
-      scene.objects.push_back(std::move(so));
-      std::cout << o.name << " (label " << o.label << "): template from label " << o.from << ", " << mesh.vertexCount()
-                << " vertices, " << enclosedVolume(mesh) / 1000.0 << " mL" << (mirror ? ", mirrored" : "") << "\n";
-    }
-    if (collisions == "auto") scene.autoCollisions = AutoCollisions{};
-    if (collisions == "all")
-      for (size_t a = 0; a < objects.size(); ++a)
-        for (size_t b = a + 1; b < objects.size(); ++b)
-          scene.collisions.push_back(CollisionPair{static_cast<int>(a), static_cast<int>(b)});
-    Json provenance = Json::object();
-    provenance["generator"] = "mskseg scene";
-    provenance["command"] = commandLineJson("scene", argv);
-    provenance["labels"] = std::filesystem::absolute(labelsPath).string();
-    scene.provenance = provenance;
-    writeScene(scene, dir + "/scene.json");
-  });
-  if (mirror) std::cout << "templates mirrored across x = " << fixed2(midX) << " mm (RAS)\n";
-  std::cout << "scene: " << out << "/scene.json (" << objects.size() << " objects, collisions " << collisions << ")\n";
+  writeFolderAtomically(out, [&](const std::string& dir) { writeSceneFolder(dir, labels, r, argv, labelsPath); });
+  if (r.mirror) std::cout << "templates mirrored across x = " << fixed2(r.mirrorX) << " mm (RAS)\n";
+  std::cout << "scene: " << out << "/scene.json (" << r.objects.size() << " objects, collisions " << r.collisions
+            << ")\n";
   return 0;
 }
 
