@@ -12,6 +12,7 @@
 #include "msk/core/collision_surface.h"
 
 #include "msk/core/error.h"
+#include "msk/core/graph_colouring.h"
 #include "msk/core/winding_number.h"
 #include "worker_pool.h"
 
@@ -135,8 +136,11 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
 
 }  // namespace
 
-SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
-                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts) {
+namespace {
+
+/// Throws ParameterError or Error for inputs separateSurfaces() cannot use.
+void checkSeparationInput(const std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
+                          const std::vector<SeparationPair>& pairs, const SeparationOptions& opts) {
   if (surfaces.size() != inverseMass.size()) throw Error("separation: one inverse mass per surface is needed");
   if (opts.maxSweeps < 0 || opts.maxSweeps > 10000)
     throw ParameterError("separation sweeps", std::to_string(opts.maxSweeps), "must be 0..10000");
@@ -157,131 +161,164 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     if (!(opts.reachMm > p.gapMm) || !std::isfinite(opts.reachMm))
       throw ParameterError("separation reach", std::to_string(opts.reachMm), "must exceed the gap");
   }
-  SeparationReport rep;
-  // Samples found near the partner at the last refresh, per pair and direction. A refresh (every sample examined, the
-  // side from the winding number) comes every kRefresh sweeps and before the run may stop, so a sample pushed into a
-  // partner by another pair's corrections is caught.
-  constexpr int kRefresh = 4;
-  const size_t np = pairs.size();
-  std::vector<std::vector<ActiveSample>> active(2 * np);
-  std::vector<bool> far(np, false);
-  // Pairs are coloured so that the pairs of one colour share no surface: they run in parallel, and the result does
-  // not depend on the thread count (colours in order, pairs of a colour independent).
-  std::vector<std::vector<int>> colours;
-  for (size_t k = 0; k < np; ++k) {
-    size_t c = 0;
-    for (; c < colours.size(); ++c) {
-      bool clash = false;
-      for (int o : colours[c]) {
-        const SeparationPair& q = pairs[static_cast<size_t>(o)];
-        clash = clash || q.a == pairs[k].a || q.a == pairs[k].b || q.b == pairs[k].a || q.b == pairs[k].b;
-      }
-      if (!clash) break;
-    }
-    if (c == colours.size()) colours.emplace_back();
-    colours[c].push_back(static_cast<int>(k));
-  }
-  WorkerPool pool(std::max(1, opts.threads > 0 ? opts.threads
-                                               : static_cast<int>(std::thread::hardware_concurrency())));
-  // A pair already deeper inside each other than the reach gets a reach that covers its deepest vertex.
-  std::vector<double> reach(np, opts.reachMm);
-  // Worker bodies must not throw: the first error is kept and rethrown on the caller.
+}
+
+/// Runs `body(begin, end)` over [0, n) on the pool; the first exception a worker throws is rethrown here.
+void runGuarded(WorkerPool& pool, int n, const std::function<void(int, int)>& body) {
   std::exception_ptr failure;
   std::mutex failureMutex;
-  auto guarded = [&](const std::function<void(int, int)>& body) {
-    return [&, body](int begin, int end) {
-      try {
-        body(begin, end);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(failureMutex);
-        if (!failure) failure = std::current_exception();
-      }
-    };
-  };
-  pool.run(static_cast<int>(np), guarded([&](int begin, int end) {
-    for (int k = begin; k < end; ++k) {
-      const TriangleMesh& A = *surfaces[static_cast<size_t>(pairs[static_cast<size_t>(k)].a)];
-      const TriangleMesh& B = *surfaces[static_cast<size_t>(pairs[static_cast<size_t>(k)].b)];
-      const double deepest =
-          std::max(penetrationDepth(A, B, opts.maxReachMm), penetrationDepth(B, A, opts.maxReachMm));
-      reach[static_cast<size_t>(k)] =
-          std::min(opts.maxReachMm, std::max(opts.reachMm, deepest + pairs[static_cast<size_t>(k)].gapMm + 0.5));
-    }
-  }), 1);
+  pool.run(
+      n,
+      [&](int begin, int end) {
+        try {
+          body(begin, end);
+        } catch (...) {
+          const std::lock_guard<std::mutex> lock(failureMutex);
+          if (!failure) failure = std::current_exception();
+        }
+      },
+      1);
   if (failure) std::rethrow_exception(failure);
-  for (size_t k = 0; k < np; ++k) {  // pairs whose boxes are farther apart than the reach are never tested
+}
+
+/// The reach of each pair: a pair already deeper inside each other than opts.reachMm gets one that covers its deepest
+/// vertex (at most opts.maxReachMm).
+std::vector<double> pairReaches(const std::vector<TriangleMesh*>& surfaces, const std::vector<SeparationPair>& pairs,
+                                const SeparationOptions& opts, WorkerPool& pool) {
+  std::vector<double> reach(pairs.size(), opts.reachMm);
+  runGuarded(pool, static_cast<int>(pairs.size()), [&](int begin, int end) {
+    for (int k = begin; k < end; ++k) {
+      const SeparationPair& p = pairs[static_cast<size_t>(k)];
+      const TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
+      const TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
+      const double deepest = std::max(penetrationDepth(A, B, opts.maxReachMm), penetrationDepth(B, A, opts.maxReachMm));
+      reach[static_cast<size_t>(k)] = std::min(opts.maxReachMm, std::max(opts.reachMm, deepest + p.gapMm + 0.5));
+    }
+  });
+  return reach;
+}
+
+/// Whether each pair's bounding boxes are farther apart than its reach (it is never tested).
+std::vector<bool> farPairs(const std::vector<TriangleMesh*>& surfaces, const std::vector<SeparationPair>& pairs,
+                           const std::vector<double>& reach) {
+  std::vector<bool> far(pairs.size(), false);
+  for (size_t k = 0; k < pairs.size(); ++k) {
     const TriangleMesh& A = *surfaces[static_cast<size_t>(pairs[k].a)];
     const TriangleMesh& B = *surfaces[static_cast<size_t>(pairs[k].b)];
     const Eigen::Vector3d loA = A.vertices.colwise().minCoeff(), hiA = A.vertices.colwise().maxCoeff();
     const Eigen::Vector3d loB = B.vertices.colwise().minCoeff(), hiB = B.vertices.colwise().maxCoeff();
     far[k] = ((loA.array() - reach[k]) > hiB.array()).any() || ((loB.array() - reach[k]) > hiA.array()).any();
   }
-  // A pair whose refresh found nothing inside and corrected nothing is settled; it is skipped for as long as neither
-  // of its surfaces is changed by another pair (versions count the passes that moved a surface).
-  std::vector<long> version(surfaces.size(), 0);
-  std::vector<long> settledAt(np, -1);  ///< the larger version of the pair's surfaces when it was found settled
+  return far;
+}
+
+/// The state of a separation across sweeps. A pair whose refresh found nothing inside and corrected nothing is
+/// settled; it is skipped for as long as neither of its surfaces is changed by another pair (versions count the
+/// passes that moved a surface).
+struct SeparationState {
+  std::vector<std::vector<ActiveSample>> active;  ///< per pair and direction: samples near the partner
+  std::vector<long> version;                      ///< per surface
+  std::vector<long> settledAt;  ///< per pair: the larger version of its surfaces when it was found settled (−1: not)
+  std::vector<long> examinedAt;                   ///< per pair: that version when it was last examined
+  std::vector<PassResult> results;                ///< per pair: the last pass
+};
+
+/// One sweep: every colour of pairs in turn, the pairs of a colour in parallel, each pair in both directions.
+PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
+                      const std::vector<SeparationPair>& pairs, const Colouring& colours,
+                      const std::vector<double>& reach, const std::vector<bool>& far, bool refresh, WorkerPool& pool,
+                      SeparationState& st) {
   auto pairVersion = [&](size_t k) {
-    return std::max(version[static_cast<size_t>(pairs[k].a)], version[static_cast<size_t>(pairs[k].b)]);
+    return std::max(st.version[static_cast<size_t>(pairs[k].a)], st.version[static_cast<size_t>(pairs[k].b)]);
   };
-  std::vector<PassResult> results(np);
-  std::vector<long> examinedAt(np, -1);
+  PassResult sweep;
+  for (int colour = 0; colour < colours.colours(); ++colour) {
+    const int begin = colours.start[static_cast<size_t>(colour)], size = colours.start[static_cast<size_t>(colour) + 1] - begin;
+    runGuarded(pool, size, [&](int lo, int hi) {
+      for (int c = lo; c < hi; ++c) {
+        const size_t k = static_cast<size_t>(colours.order[static_cast<size_t>(begin + c)]);
+        st.results[k] = PassResult{};
+        if (far[k] || (st.settledAt[k] >= 0 && pairVersion(k) == st.settledAt[k])) continue;
+        const SeparationPair& p = pairs[k];
+        TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
+        TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
+        const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
+        for (int d = 0; d < 2; ++d) {
+          std::vector<ActiveSample>& act = st.active[2 * k + static_cast<size_t>(d)];
+          const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
+                                      : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
+          st.results[k].applied += r.applied;
+          st.results[k].largestMm = std::max(st.results[k].largestMm, r.largestMm);
+          st.results[k].anyInside = st.results[k].anyInside || r.anyInside;
+        }
+      }
+    });
+    // Bookkeeping after the colour, in pair order (independent of the threads).
+    for (int c = 0; c < size; ++c) {
+      const size_t k = static_cast<size_t>(colours.order[static_cast<size_t>(begin + c)]);
+      const PassResult& r = st.results[k];
+      if (r.applied > 0) {
+        ++st.version[static_cast<size_t>(pairs[k].a)];
+        ++st.version[static_cast<size_t>(pairs[k].b)];
+      }
+      st.examinedAt[k] = pairVersion(k);
+      sweep.applied += r.applied;
+      sweep.largestMm = std::max(sweep.largestMm, r.largestMm);
+      sweep.anyInside = sweep.anyInside || r.anyInside;
+    }
+  }
+  // Pairs examined in a refresh that needed nothing are settled at the versions they were examined at (a later
+  // colour that moved one of their surfaces has changed that version, which unsettles them).
+  if (refresh)
+    for (size_t k = 0; k < pairs.size(); ++k)
+      if (!far[k] && st.results[k].applied == 0 && !st.results[k].anyInside) st.settledAt[k] = st.examinedAt[k];
+  return sweep;
+}
+
+}  // namespace
+
+SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
+                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts) {
+  checkSeparationInput(surfaces, inverseMass, pairs, opts);
+  SeparationReport rep;
+  // Samples found near the partner at the last refresh, per pair and direction. A refresh (every sample examined, the
+  // side from the winding number) comes every kRefresh sweeps and before the run may stop, so a sample pushed into a
+  // partner by another pair's corrections is caught.
+  constexpr int kRefresh = 4;
+  const size_t np = pairs.size();
+  // Pairs are coloured so that the pairs of one colour share no surface: they run in parallel, and the result does
+  // not depend on the thread count (colours in order, pairs of a colour independent).
+  const Colouring colours = colourConstraints(static_cast<int>(np), 2, [&](int k, int* out) {
+    out[0] = pairs[static_cast<size_t>(k)].a;
+    out[1] = pairs[static_cast<size_t>(k)].b;
+    return 2;
+  });
+  WorkerPool pool(std::max(1, opts.threads > 0 ? opts.threads
+                                               : static_cast<int>(std::thread::hardware_concurrency())));
+  const std::vector<double> reach = pairReaches(surfaces, pairs, opts, pool);
+  const std::vector<bool> far = farPairs(surfaces, pairs, reach);
+  SeparationState st;
+  st.active.resize(2 * np);
+  st.version.assign(surfaces.size(), 0);
+  st.settledAt.assign(np, -1);
+  st.examinedAt.assign(np, -1);
+  st.results.resize(np);
   int sinceRefresh = 0;
   bool settled = false;
   for (int sweep = 0; sweep < opts.maxSweeps; ++sweep) {
     const bool refresh = sweep == 0 || sinceRefresh >= kRefresh || settled;
     sinceRefresh = refresh ? 1 : sinceRefresh + 1;
-    long applied = 0;
-    double largest = 0;
-    bool anyInside = false;
-    for (const std::vector<int>& colour : colours) {
-      pool.run(static_cast<int>(colour.size()), guarded([&](int begin, int end) {
-        for (int c = begin; c < end; ++c) {
-          const size_t k = static_cast<size_t>(colour[static_cast<size_t>(c)]);
-          results[k] = PassResult{};
-          if (far[k] || (settledAt[k] >= 0 && pairVersion(k) == settledAt[k])) continue;
-          const SeparationPair& p = pairs[k];
-          TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
-          TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
-          const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
-          for (int d = 0; d < 2; ++d) {
-            std::vector<ActiveSample>& act = active[2 * k + static_cast<size_t>(d)];
-            const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
-                                        : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
-            results[k].applied += r.applied;
-            results[k].largestMm = std::max(results[k].largestMm, r.largestMm);
-            results[k].anyInside = results[k].anyInside || r.anyInside;
-          }
-        }
-      }), 1);
-      if (failure) std::rethrow_exception(failure);
-      // Bookkeeping after the colour, in pair order (independent of the threads).
-      for (int k : colour) {
-        const PassResult& r = results[static_cast<size_t>(k)];
-        if (r.applied > 0) {
-          ++version[static_cast<size_t>(pairs[static_cast<size_t>(k)].a)];
-          ++version[static_cast<size_t>(pairs[static_cast<size_t>(k)].b)];
-        }
-        examinedAt[static_cast<size_t>(k)] = pairVersion(static_cast<size_t>(k));
-        applied += r.applied;
-        largest = std::max(largest, r.largestMm);
-        anyInside = anyInside || r.anyInside;
-      }
-    }
-    // Pairs examined in a refresh that needed nothing are settled at the versions they were examined at (a later
-    // colour that moved one of their surfaces has changed that version, which unsettles them).
-    if (refresh)
-      for (size_t k = 0; k < np; ++k)
-        if (!far[k] && results[k].applied == 0 && !results[k].anyInside) settledAt[k] = examinedAt[k];
+    const PassResult r = sweepPairs(surfaces, inverseMass, pairs, colours, reach, far, refresh, pool, st);
     ++rep.sweeps;
-    rep.corrections += applied;
+    rep.corrections += r.applied;
     // Done when a refresh sweep finds nothing inside a partner. Between refreshes, a sweep that found nothing inside
     // and corrected nothing by more than the tolerance calls the refresh early (within-gap adjustments between three
     // or more touching surfaces can go on trading hundredths of a millimetre).
-    if (refresh && !anyInside) {
+    if (refresh && !r.anyInside) {
       rep.clean = true;
       break;
     }
-    settled = !anyInside && largest < opts.toleranceMm;
+    settled = !r.anyInside && r.largestMm < opts.toleranceMm;
   }
   for (TriangleMesh* s : surfaces)
     if (!s->vertices.allFinite()) throw Error("separation: non-finite vertex position");
