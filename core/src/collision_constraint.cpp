@@ -34,12 +34,7 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
   if (!contactPositionChange(pc, pc, normal, spring, 0.0, delta)) return false;
   ConstraintRow row;
   contactRow(delta, bary, row);
-  const double wj[4] = {w, wi[0], wi[1], wi[2]};
-  Eigen::Vector3d d[4];
-  if (!pbdCorrections(row, wj, d)) return false;
-  dp = d[0];
-  for (int i = 0; i < 3; ++i) dpi[i] = d[i + 1];
-  return true;
+  return pbdCorrections(row, w, wi, dp, dpi);
 }
 
 namespace {

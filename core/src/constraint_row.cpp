@@ -25,6 +25,17 @@ bool pbdCorrections(const ConstraintRow& row, const double wj[], Eigen::Vector3d
   return true;
 }
 
+bool pbdCorrections(const ConstraintRow& row, double w, const double wi[], Eigen::Vector3d& dp, Eigen::Vector3d dpi[]) {
+  double wj[kMaxRowParticles];
+  Eigen::Vector3d d[kMaxRowParticles];
+  wj[0] = w;
+  for (int j = 1; j < row.count; ++j) wj[j] = wi[j - 1];
+  if (!pbdCorrections(row, wj, d)) return false;
+  dp = d[0];
+  for (int j = 1; j < row.count; ++j) dpi[j - 1] = d[j];
+  return true;
+}
+
 bool applyPbdRow(const ConstraintRow& row, const Eigen::VectorXd& w, Points& p) {
   double wj[kMaxRowParticles];
   Eigen::Vector3d dp[kMaxRowParticles];

@@ -227,13 +227,7 @@ bool radialCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d q[2], cons
   if (!(gamma >= 0.0 && gamma <= 1.0)) return false;
   ConstraintRow row;
   if (!radialRow(p, q, weights, radius, gamma, row)) return false;
-  const double wj[3] = {w, wq[0], wq[1]};
-  Vec3 d[3];
-  if (!pbdCorrections(row, wj, d)) return false;
-  dp = d[0];
-  dq[0] = d[1];
-  dq[1] = d[2];
-  return true;
+  return pbdCorrections(row, w, wq, dp, dq);
 }
 
 // ------------------------------------------------------------------------------------------------ sets

@@ -128,12 +128,7 @@ bool simplexInternalCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d p
                                Eigen::Vector3d dpi[3], bool* torqueFree) {
   ConstraintRow row;
   if (!simplexInternalRow(p, pi, target, w, wi, eps, gamma, row, torqueFree)) return false;
-  const double wj[4] = {w, wi[0], wi[1], wi[2]};
-  Eigen::Vector3d d[4];
-  if (!pbdCorrections(row, wj, d)) return false;
-  dp = d[0];
-  for (int i = 0; i < 3; ++i) dpi[i] = d[i + 1];
-  return true;
+  return pbdCorrections(row, w, wi, dp, dpi);
 }
 
 void simplexReferenceParameters(const SimplexMesh& reference, Eigen::MatrixX3d& eps, Eigen::VectorXd& hOverR) {

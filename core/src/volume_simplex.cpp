@@ -433,12 +433,7 @@ bool volumeSimplexCorrection(const Vec3& p, const Vec3 pi[4], double w, const do
                              double gamma, Vec3& dp, Vec3 dpi[4]) {
   ConstraintRow row;
   if (!volumeSimplexRow(p, pi, eps, gamma, row)) return false;
-  const double wj[5] = {w, wi[0], wi[1], wi[2], wi[3]};
-  Vec3 d[5];
-  if (!pbdCorrections(row, wj, d)) return false;
-  dp = d[0];
-  for (int i = 0; i < 4; ++i) dpi[i] = d[i + 1];
-  return true;
+  return pbdCorrections(row, w, wi, dp, dpi);
 }
 
 VolumeSimplexConstraints::VolumeSimplexConstraints(const VolumeSimplexMesh& model, double gamma,

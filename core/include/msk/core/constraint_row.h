@@ -38,6 +38,10 @@ double rowInverseMass(const ConstraintRow& row, const Eigen::VectorXd& w);
 /// Returns false (leaving `dp` untouched) if W ≤ 0 or is not finite, or C is not finite.
 bool pbdCorrections(const ConstraintRow& row, const double wj[], Eigen::Vector3d dp[]);
 
+/// pbdCorrections() of a kernel's row over (P, P1 .. Pn) (indices 0 .. n, n = row.count − 1): ΔP into `dp` and ΔPi
+/// into `dpi`, for the inverse masses w of P and wi of the Pi.
+bool pbdCorrections(const ConstraintRow& row, double w, const double wi[], Eigen::Vector3d& dp, Eigen::Vector3d dpi[]);
+
 /// pbdCorrections() of a row over global indices, with the inverse masses `w`, added to the positions `p`.
 bool applyPbdRow(const ConstraintRow& row, const Eigen::VectorXd& w, Points& p);
 
