@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "msk/imaging/json.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 // Measured: femur 0.911, hip bone 0.948, gluteus maximus 0.885, gluteus medius 0.862, no overlap (README, Real
 // scans); the guards are those of RealScenes.CtFemurHipAndGlutealMusclesOfOneSide, whose templates are also displaced.

@@ -8,7 +8,8 @@
 #include <vector>
 
 #include "msk/segmentation/qc_pictures.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/cli.h"
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;

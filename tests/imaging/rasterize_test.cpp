@@ -8,7 +8,8 @@
 #include <iostream>
 
 #include "msk/core/error.h"
-#include "test_support.h"
+#include "msk/test/shapes.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -37,16 +38,13 @@ struct Overlap {
 Overlap compareWithBall(const msk::LabelMap& labels, const Eigen::Vector3d& c, double r) {
   Overlap o;
   size_t both = 0;
-  const msk::Grid& g = labels.grid;
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        const bool inBall = (g.toWorld(Eigen::Vector3d(i, j, k)) - c).norm() <= r;
-        const bool inMesh = labels.at(i, j, k) != 0;
-        o.ballVoxels += inBall;
-        o.meshVoxels += inMesh;
-        both += inBall && inMesh;
-      }
+  const msk::LabelMap ball = msk::test::ballLabels(labels.grid, c, r);
+  for (size_t v = 0; v < labels.data.size(); ++v) {
+    const bool inBall = ball.data[v] != 0, inMesh = labels.data[v] != 0;
+    o.ballVoxels += inBall;
+    o.meshVoxels += inMesh;
+    both += inBall && inMesh;
+  }
   o.dice = 2.0 * static_cast<double>(both) / static_cast<double>(o.ballVoxels + o.meshVoxels);
   return o;
 }

@@ -15,7 +15,7 @@
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
 #include "msk/segmentation/segmenter.h"
-#include "test_support.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -23,12 +23,6 @@ msk::Grid boxGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& halfWid
   g.spacing = spacing;
   g.origin = -spacing.cwiseProduct((g.dims.cast<double>().array() - 1.0).matrix() / 2.0);
   return g;
-}
-
-/// A ball of radius r about `center` with partial volume (4³ samples per voxel): `inside` in, `outside` out.
-msk::ImageF ballImage(const msk::Grid& g, const Eigen::Vector3d& center, double r, float inside, float outside) {
-  return msk::test::partialVolumeImage(
-      g, [&](const Eigen::Vector3d& x) { return (x - center).squaredNorm() <= r * r; }, inside, outside);
 }
 
 msk::Scene oneObject(const msk::TriangleMesh& templ) {
@@ -87,7 +81,7 @@ double meanRadius(const msk::TriangleMesh& m, const Eigen::Vector3d& c) {
 TEST(SegmenterExtremes, VeryAnisotropicVoxels) {
   const msk::Grid g = boxGrid({0.3, 0.3, 8.0}, {13, 13, 16});
   const Eigen::Vector3d c(0.1, -0.2, 0.0);
-  const msk::ImageF img = ballImage(g, c, 9.0, 200.f, 800.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, 9.0, 200.f, 800.f);
   const msk::SegmentOptions o = quick(1, 30);
   const msk::SegmentationResult res = msk::segmentScene(img, oneObject(msk::makeIcosphere(7.5, 3, c)), o);
   expectSane(res, o, 8.0, "0.3x0.3x8 mm voxels");
@@ -124,7 +118,7 @@ TEST(SegmenterExtremes, PureNoiseImageStaysBounded) {
 TEST(SegmenterExtremes, NaNVoxelIsRefusedWithAClearError) {
   const msk::Grid g = boxGrid({1.0, 1.0, 1.0}, {8, 8, 8});
   for (const float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
-    msk::ImageF img = ballImage(g, Eigen::Vector3d::Zero(), 5.0, 200.f, 800.f);
+    msk::ImageF img = msk::test::ballImage(g, Eigen::Vector3d::Zero(), 5.0, 200.f, 800.f);
     img.at(3, 4, 5) = bad;
     try {
       msk::segmentScene(img, oneObject(msk::makeIcosphere(4.0, 2)), quick(1, 5));
@@ -143,7 +137,7 @@ TEST(SegmenterExtremes, NaNVoxelIsRefusedWithAClearError) {
 msk::TriangleMesh ballInUnits(double unit, int levels) {
   const msk::Grid g = boxGrid(Eigen::Vector3d::Constant(1.0 * unit), Eigen::Vector3d::Constant(15.0 * unit));
   const Eigen::Vector3d c = Eigen::Vector3d(0.3, -0.2, 0.1) * unit;
-  const msk::ImageF img = ballImage(g, c, 10.0 * unit, 200.f, 800.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, 10.0 * unit, 200.f, 800.f);
   msk::SegmentOptions o = quick(levels, 25);
   o.image.edgePenalty = 0;
   o.image.rangeCoarseExtraMm *= unit;

@@ -11,7 +11,9 @@
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/segmenter.h"
 #include "msk/segmentation/template_builder.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/volumes.h"
+#include "msk/test/templates.h"
 
 namespace {
 /// Mid-sagittal plane: x (RAS mm) of the sacrum's centroid (label 25), a midline landmark; no femur label is used.

@@ -21,7 +21,10 @@
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
 #include "msk/segmentation/template_builder.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/shapes.h"
+#include "msk/test/volumes.h"
+#include "msk/test/templates.h"
 
 namespace {
 

@@ -8,17 +8,9 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
-#include "test_support.h"
+#include "msk/test/volumes.h"
 
 namespace {
-
-/// A ball (or ellipsoid with semi-axes `axes`) image with partial volume: `inside` in, `outside` out.
-msk::ImageF ellipsoidImage(const msk::Grid& g, const Eigen::Vector3d& center, const Eigen::Vector3d& axes,
-                           float inside, float outside) {
-  return msk::test::partialVolumeImage(
-      g, [&](const Eigen::Vector3d& x) { return (x - center).cwiseQuotient(axes).squaredNorm() <= 1.0; }, inside,
-      outside);
-}
 
 msk::Grid cubeGrid(double spacing, double halfWidthMm, const Eigen::Vector3d& rotDeg = Eigen::Vector3d::Zero()) {
   msk::Grid g;
@@ -59,7 +51,7 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
   const double spacing = 1.0, r = 20.0;
   const msk::Grid g = cubeGrid(spacing, 32, {10, -5, 20});
   const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(r), 200.f, 800.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
   for (double start : {r - 3.0, r + 3.0}) {
     msk::SegmentOptions opts;
     const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(start, 3, c)), opts);
@@ -77,7 +69,7 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
 TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const Eigen::Vector3d axes(22, 16, 12);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
   msk::TriangleMesh templ = msk::makeIcosphere(1.0, 4);
   for (int i = 0; i < templ.vertexCount(); ++i) templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose());
   msk::SegmentOptions opts;
@@ -91,7 +83,7 @@ TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
 TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
   const msk::Grid g = cubeGrid(1.2, 30);
   const Eigen::Vector3d c(0.5, 0.2, -0.3);
-  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(18.0), 900.f, 150.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, 18.0, 900.f, 150.f);
   for (double gamma : {0.0, 1e-12, 1.0}) {
     for (double image : {0.0, 1.0}) {
       msk::SegmentOptions opts;
@@ -221,7 +213,7 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
 TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const Eigen::Vector3d axes(20, 14, 11);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
   msk::TriangleMesh templ = msk::makeIcosphere(1.0, 3);
   for (int i = 0; i < templ.vertexCount(); ++i)
     templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose()) + Eigen::RowVector3d(3, -2, 1);
@@ -252,7 +244,7 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
 // Collision detection runs its sets on --threads threads; the result is the same as on one.
 TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   const msk::Grid g = cubeGrid(1.0, 30);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
+  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
   msk::Scene scene = oneObjectScene(msk::makeIcosphere(10, 3, {-7, 0, 0}));
   msk::SceneObject other = scene.objects[0];
   other.name = "other";

@@ -10,7 +10,8 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/nifti_io.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -23,12 +24,7 @@ msk::LabelMap ballLabels(const Eigen::Vector3d& c, double r, int label,
   g.dims = {48, 48, 18};
   g.origin = c - dir * g.spacing.cwiseProduct((g.dims.cast<double>() - Eigen::Vector3d::Ones()) / 2) +
              Eigen::Vector3d(0.31, -0.17, 0.43);
-  msk::LabelMap lab(g, 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if ((g.toWorld(Eigen::Vector3d(i, j, k)) - c).norm() <= r) lab.at(i, j, k) = label;
-  return lab;
+  return msk::test::ballLabels(g, c, r, label);
 }
 
 struct RadiusStats {
@@ -106,12 +102,7 @@ TEST(TemplateBuilder, SmoothingAndVolumeOptions) {
 
 TEST(TemplateBuilder, LargestComponentAndAbsentLabel) {
   msk::LabelMap lab = ballLabels({0, 0, 0}, 10, 3);
-  const msk::Grid& g = lab.grid;
-  // A second, smaller ball of the same label, well apart.
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if ((g.toWorld(Eigen::Vector3d(i, j, k)) - Eigen::Vector3d(0, 17, 0)).norm() <= 4.5) lab.at(i, j, k) = 3;
+  msk::test::paintBall(lab, Eigen::Vector3d(0, 17, 0), 4.5, 3);  // a second, smaller ball of the same label, well apart
   msk::TemplateOptions o;
   o.vertices = 1000;
   msk::TemplateReport rep;

@@ -25,7 +25,8 @@
 #include "msk/segmentation/segmenter.h"
 #include "msk/segmentation/template_builder.h"
 #include "msk/segmentation/tetrahedralize.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
