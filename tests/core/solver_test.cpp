@@ -9,23 +9,20 @@
 #include <limits>
 #include <memory>
 #include <random>
-#include <set>
 
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
-#include "msk/core/graph_colouring.h"
-#include "msk/core/medial_axis.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
 #include "msk/core/collision_constraint.h"
-#include "msk/core/constraint_row.h"
 #include "msk/core/constraint_set.h"
 #include "msk/core/shape_matching_constraint.h"
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/target_constraint.h"
 #include "msk/core/transform_fit.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
@@ -49,7 +46,7 @@ struct SphereProblem {
 
 SphereProblem makeSphere(int subdivisions, bool consistent = true, double priorWeight = 0.1) {
   SphereProblem s;
-  s.mesh = msk::simplexFromTriangles(msk::makeIcosphere(10.0, subdivisions));
+  s.mesh = msk::test::simplexSphere(10.0, subdivisions);
   s.x0 = s.mesh.positions;
   const int n = s.mesh.vertexCount();
   s.w = Eigen::VectorXd::Ones(n);
@@ -109,16 +106,6 @@ RunResult run(const SolverOptions& o, const SphereProblem& s, int maxSteps, doub
 }
 
 
-/// The correction one row gives alone (PBD, Δλ = −γ C / W), as a full #V×3 displacement.
-Points rowCorrection(const msk::ConstraintRow& r, const Eigen::VectorXd& w, int n) {
-  Points d = Points::Zero(n, 3);
-  double W = 0;
-  for (int j = 0; j < r.count; ++j) W += r.grad[j] * r.react[j] * w[r.index[j]];
-  const Eigen::Vector3d dl = (-r.gamma / W) * r.c;
-  for (int j = 0; j < r.count; ++j) d.row(r.index[j]) += (w[r.index[j]] * r.react[j] * dl).transpose();
-  return d;
-}
-
 bool bitwiseEqual(const Points& a, const Points& b) {
   return a.rows() == b.rows() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
 }
@@ -152,27 +139,6 @@ TEST(SolverOptions, NamesParseAndBadValuesThrow) {
   EXPECT_NO_THROW(msk::Solver{inf});
   // Negative set stiffness is refused where the sets are built.
   EXPECT_THROW(msk::TargetConstraints(-1e-12), msk::ParameterError);
-}
-
-TEST(GraphColouring, NoColourSharesAParticleAndEveryConstraintIsColouredOnce) {
-  const SphereProblem s = makeSphere(3);
-  const msk::ConstraintSet& set = *s.internal;
-  const msk::Colouring c = msk::colourConstraints(
-      set.rowCount(), msk::kMaxRowParticles, [&](int r, int* out) { return set.rowParticles(r, out); });
-  EXPECT_GE(c.colours(), 4);
-  EXPECT_LE(c.colours(), 13);  // Δ + 1: a row shares particles with at most 12 others on a 2-simplex mesh
-  std::vector<int> seen(static_cast<size_t>(set.rowCount()), 0);
-  for (int k = 0; k < c.colours(); ++k) {
-    std::set<int> used;
-    for (int i = c.start[static_cast<size_t>(k)]; i < c.start[static_cast<size_t>(k) + 1]; ++i) {
-      const int r = c.order[static_cast<size_t>(i)];
-      ++seen[static_cast<size_t>(r)];
-      int idx[msk::kMaxRowParticles];
-      const int m = set.rowParticles(r, idx);
-      for (int j = 0; j < m; ++j) EXPECT_TRUE(used.insert(idx[j]).second) << "colour " << k << " row " << r;
-    }
-  }
-  for (int x : seen) EXPECT_EQ(x, 1);
 }
 
 // Sequential Gauss–Seidel is every set's project() in order, `iterations` times per step: from rest, one step lands
@@ -432,72 +398,6 @@ TEST(SolverFigures, TradeOffOnTheSphere) {
     std::printf("[ figures  ] %-22s %4d steps to 1e-4 mm/step, max error %.2e mm, %.3f s (%.1f us/step)\n", st.label,
                 r.steps, r.error, r.seconds, 1e6 * r.seconds / r.steps);
   }
-}
-
-// The rows of the radial and 3-simplex sets reproduce their kernels (radialCorrection, volumeSimplexCorrection).
-TEST(ConstraintRows, RadialAndVolumeRowsReproduceTheirKernels) {
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> mass(0.3, 3.0), jitter(-0.5, 0.5);
-  // Radial: an icosphere around a 5-vertex axis, squeezed and jittered; axis particles after the surface.
-  const msk::TriangleMesh sphere = msk::makeIcosphere(8.0, 2);
-  Points axis(5, 3);
-  for (int j = 0; j < 5; ++j) axis.row(j) << 0, 0, -6.0 + 3.0 * j;
-  const msk::RadialAttachment att = msk::attachToAxis(sphere.vertices, axis);
-  const int nv = sphere.vertexCount(), n = nv + 5;
-  Points p(n, 3);
-  p.topRows(nv) = 0.8 * sphere.vertices;
-  p.bottomRows(5) = axis;
-  for (int i = 0; i < n; ++i)
-    for (int d = 0; d < 3; ++d) p(i, d) += jitter(rng);
-  Eigen::VectorXd w(n);
-  for (int i = 0; i < n; ++i) w[i] = 1.0 / mass(rng);
-  msk::RadialConstraints radial(att, nv, 0.7);
-  ASSERT_EQ(radial.rowCount(), nv);
-  for (int r = 0; r < nv; ++r) {
-    msk::ConstraintRow row;
-    ASSERT_TRUE(radial.row(r, p, w, row));
-    const Points d = rowCorrection(row, w, n);
-    const int a = nv + att.axisIndex(r, 0), b = nv + att.axisIndex(r, 1);
-    const Eigen::Vector3d q[2] = {p.row(a).transpose(), p.row(b).transpose()};
-    const double c[2] = {att.weights(r, 0), att.weights(r, 1)}, wq[2] = {w[a], w[b]};
-    Eigen::Vector3d dp, dq[2];
-    ASSERT_TRUE(msk::radialCorrection(p.row(r).transpose(), q, c, att.radius[r], w[r], wq, 0.7, dp, dq));
-    Points k = Points::Zero(n, 3);
-    k.row(r) += dp.transpose();
-    k.row(a) += dq[0].transpose();
-    k.row(b) += dq[1].transpose();
-    EXPECT_LT((d - k).cwiseAbs().maxCoeff(), 1e-12) << "radial row " << r;
-  }
-  // 3-simplex: a jittered 2×2×2 cube model, ghosts constrained too.
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 5.0));
-  const int nvol = vm.vertexCount();
-  Points pv = vm.simplex.positions;
-  for (int i = 0; i < nvol; ++i)
-    for (int d = 0; d < 3; ++d) pv(i, d) += jitter(rng);
-  Eigen::VectorXd wv(nvol);
-  for (int i = 0; i < nvol; ++i) wv[i] = 1.0 / mass(rng);
-  msk::VolumeSimplexConstraints vol(vm, 0.6, msk::VolumeBoundary::Constrained);
-  int checked = 0;
-  for (int r = 0; r < vol.rowCount(); ++r) {
-    msk::ConstraintRow row;
-    if (!vol.row(r, pv, wv, row)) continue;
-    ++checked;
-    const Points d = rowCorrection(row, wv, nvol);
-    const int v = row.index[0];  // the row's vertex
-    Eigen::Vector3d pi[4], dp, dpi[4];
-    double wi[4], eps[4];
-    for (int i = 0; i < 4; ++i) {
-      pi[i] = pv.row(vm.simplex.neighbors(v, i)).transpose();
-      wi[i] = wv[vm.simplex.neighbors(v, i)];
-      eps[i] = vm.epsilon(v, i);
-    }
-    ASSERT_TRUE(msk::volumeSimplexCorrection(pv.row(v).transpose(), pi, wv[v], wi, eps, 0.6, dp, dpi));
-    Points k = Points::Zero(nvol, 3);
-    k.row(v) += dp.transpose();
-    for (int i = 0; i < 4; ++i) k.row(vm.simplex.neighbors(v, i)) += dpi[i].transpose();
-    EXPECT_LT((d - k).cwiseAbs().maxCoeff(), 1e-12) << "volume row " << r;
-  }
-  EXPECT_GT(checked, nvol / 2);
 }
 
 // A jittered volume model with its ghosts fixed returns to rest under every scheme (the unique answer).
