@@ -2,109 +2,35 @@
 // determinism with threads, and stability at the extremes of stiffness, time step and mass.
 #include "msk/core/solver.h"
 
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <limits>
-#include <memory>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
-#include "msk/core/error.h"
-#include "msk/core/simplex_mesh.h"
-#include "msk/core/triangle_mesh.h"
-#include "msk/core/volume_simplex.h"
 #include "msk/core/collision_constraint.h"
 #include "msk/core/constraint_set.h"
-#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/error.h"
 #include "msk/core/simplex_internal_constraint.h"
+#include "msk/core/simplex_mesh.h"
 #include "msk/core/target_constraint.h"
-#include "msk/core/transform_fit.h"
+#include "msk/core/volume_simplex.h"
 #include "msk/test/shapes.h"
+#include "msk/test/solver_scenarios.h"
 
 namespace {
 
 using msk::Points;
 using msk::Scheme;
 using msk::SolverOptions;
+using msk::test::runSphereProblem;
+using msk::test::SphereProblem;
+using msk::test::sphereProblem;
+using msk::test::SphereRun;
 
-/// A 2-simplex sphere (radius 10 mm) with shape memory, image-like targets on every other vertex and a similarity
-/// prior. `consistent`: targets on the sphere scaled by 1.2 (every constraint holds there, the unique answer);
-/// otherwise targets at 1.2× on the x > 0 half and 1× elsewhere (a compromise that depends on the stiffnesses).
-struct SphereProblem {
-  msk::SimplexMesh mesh;
-  Points x0, expected;
-  Eigen::VectorXd w;
-  std::unique_ptr<msk::SimplexInternalConstraints> internal;
-  std::unique_ptr<msk::TargetConstraints> targets;
-  std::unique_ptr<msk::ShapeMatchingConstraint> prior;
-
-  std::vector<msk::ConstraintSet*> sets() const { return {internal.get(), targets.get(), prior.get()}; }
-};
-
-SphereProblem makeSphere(int subdivisions, bool consistent = true, double priorWeight = 0.1) {
-  SphereProblem s;
-  s.mesh = msk::test::simplexSphere(10.0, subdivisions);
-  s.x0 = s.mesh.positions;
-  const int n = s.mesh.vertexCount();
-  s.w = Eigen::VectorXd::Ones(n);
-  s.expected = 1.2 * s.x0;
-  Points t = s.expected;
-  if (!consistent)
-    for (int i = 0; i < n; ++i)
-      if (s.x0(i, 0) <= 0) t.row(i) = s.x0.row(i);
-  Eigen::VectorXd weights(n);
-  for (int i = 0; i < n; ++i) weights[i] = i % 2 == 0 ? 1.0 : 0.0;
-  s.internal = std::make_unique<msk::SimplexInternalConstraints>(s.mesh, 0.8);
-  s.targets = std::make_unique<msk::TargetConstraints>(0.5);
-  s.targets->setTargets(t, weights);
-  s.prior = std::make_unique<msk::ShapeMatchingConstraint>(s.x0, msk::PriorTransform::Similarity, priorWeight);
-  return s;
-}
-
-/// Settings each scheme is run with in these tests (see the report for the recommended presets).
-SolverOptions optionsFor(Scheme scheme) {
-  SolverOptions o;
-  o.scheme = scheme;
-  o.iterations = 4;
-  switch (scheme) {
-    case Scheme::Jacobi: o.omega = 1.5; break;
-    case Scheme::Xpbd: o.stiffness = 1e6; break;
-    case Scheme::Explicit: o.substeps = 4; break;
-    default: break;
-  }
-  return o;
-}
-
-struct RunResult {
-  int steps = 0;
-  bool converged = false;
-  double error = 0, seconds = 0, lastMove = 0;
-  Points x;
-};
-
-/// Steps until no vertex moves more than `tolMm` (or `maxSteps`); error = largest distance to `expected`.
-RunResult run(const SolverOptions& o, const SphereProblem& s, int maxSteps, double tolMm, const Points* expected) {
-  RunResult r;
-  msk::Solver solver(o);
-  solver.prepare(s.x0, s.w);
-  const auto t0 = std::chrono::steady_clock::now();
-  for (; r.steps < maxSteps;) {
-    r.lastMove = solver.step(s.sets());
-    ++r.steps;
-    if (r.lastMove < tolMm) {
-      r.converged = true;
-      break;
-    }
-  }
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  r.x = solver.positions();
-  if (expected) r.error = (r.x - *expected).rowwise().norm().maxCoeff();
-  return r;
-}
-
+SolverOptions optionsFor(Scheme scheme) { return msk::test::sphereProblemOptions(scheme); }
 
 bool bitwiseEqual(const Points& a, const Points& b) {
   return a.rows() == b.rows() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
@@ -144,7 +70,7 @@ TEST(SolverOptions, NamesParseAndBadValuesThrow) {
 // Sequential Gauss–Seidel is every set's project() in order, `iterations` times per step: from rest, one step lands
 // where three sweeps by hand do, bit for bit.
 TEST(SolverSchemes, GaussSeidelStepIsTheSetsProjectionsInOrder) {
-  const SphereProblem s = makeSphere(2);
+  const SphereProblem s = sphereProblem(2);
   SolverOptions o;
   o.iterations = 3;
   msk::Solver solver(o);
@@ -161,21 +87,18 @@ TEST(SolverSchemes, GaussSeidelStepIsTheSetsProjectionsInOrder) {
 // Every scheme reaches the unique answer of a consistent problem (the sphere scaled by 1.2 satisfies the shape memory,
 // the targets and the similarity prior), to 0.01 mm on a 12 mm sphere.
 TEST(SolverSchemes, EverySchemeConvergesToTheSameAnswer) {
-  const SphereProblem s = makeSphere(2);
+  const SphereProblem s = sphereProblem(2);
   for (Scheme scheme : msk::allSchemes()) {
-    const RunResult r = run(optionsFor(scheme), s, 3000, 1e-7, &s.expected);
+    const SphereRun r = runSphereProblem(optionsFor(scheme), s, 3000, 1e-7, &s.expected);
     EXPECT_TRUE(r.converged) << msk::schemeName(scheme) << " last move " << r.lastMove;
     EXPECT_LT(r.error, 0.01) << msk::schemeName(scheme);
-    std::printf("[ figures  ] %-22s converged in %4d steps, max error %.2e mm, %.3f s\n", msk::schemeName(scheme).c_str(),
-                r.steps, r.error, r.seconds);
   }
 }
 
 // Internal (2-simplex method 2) and collision corrections carry no linear momentum under every position-based
 // scheme: two overlapping, perturbed spheres with random masses, one step without drag.
 TEST(SolverSchemes, InternalAndCollisionCorrectionsConserveLinearMomentum) {
-  const msk::SimplexMesh a = msk::simplexFromTriangles(msk::makeIcosphere(10, 2));
-  msk::SimplexMesh b = msk::simplexFromTriangles(msk::makeIcosphere(10, 2, {16, 0, 0}));
+  const msk::SimplexMesh a = msk::test::simplexSphere(10.0), b = msk::test::simplexSphere(10.0, 2, {16, 0, 0});
   const int na = a.vertexCount(), nb = b.vertexCount();
   std::mt19937 rng(17);
   std::uniform_real_distribution<double> jitter(-0.6, 0.6), mass(0.5, 2.0);
@@ -222,40 +145,21 @@ TEST(SolverSchemes, InternalAndCollisionCorrectionsConserveLinearMomentum) {
 // on one half of the sphere against the shape memory): the state after 100 steps is within 2 % of the displacement
 // for 5 to 80 iterations per step.
 TEST(SolverSchemes, XpbdWithinTwoPercentFrom5To80Iterations) {
-  const SphereProblem s = makeSphere(2, false, 0.0);
-  const std::vector<msk::ConstraintSet*> sets = {s.internal.get(), s.targets.get()};
-  auto after100 = [&](Scheme scheme, int iterations) {
-    SolverOptions o = optionsFor(scheme);
-    o.iterations = iterations;
-    o.stiffness = 1.0;
-    msk::Solver solver(o);
-    solver.prepare(s.x0, s.w);
-    for (int i = 0; i < 100; ++i) solver.step(sets);
-    return Points(solver.positions());
-  };
   const std::vector<int> counts = {5, 10, 20, 40, 80};
   for (Scheme scheme : {Scheme::Xpbd, Scheme::GaussSeidel}) {
-    std::vector<Points> results;
-    for (int iterations : counts) results.push_back(after100(scheme, iterations));
-    const Points& ref = results.back();
-    const double moved = (ref - s.x0).rowwise().norm().maxCoeff();
+    double moved = 0;
+    const std::vector<double> dev = msk::test::iterationDeviations(scheme, counts, moved);
+    ASSERT_EQ(dev.size(), counts.size()) << msk::schemeName(scheme) << ": a result is not finite";
     ASSERT_GT(moved, 0.5);
-    for (size_t i = 0; i < results.size(); ++i) {
-      ASSERT_TRUE(results[i].allFinite());
-      const double dev = (results[i] - ref).rowwise().norm().maxCoeff() / moved;
-      std::printf("[ figures  ] %-12s %2d iterations: deviation from 80 iterations %.3f %% of %.2f mm\n",
-                  msk::schemeName(scheme).c_str(), counts[i], 100 * dev, moved);
-      if (scheme == Scheme::Xpbd) {
-        EXPECT_LT(dev, 0.02) << counts[i] << " iterations";
-      }
-    }
+    if (scheme != Scheme::Xpbd) continue;
+    for (size_t i = 0; i < counts.size(); ++i) EXPECT_LT(dev[i], 0.02) << counts[i] << " iterations";
   }
 }
 
 // Coloured Gauss–Seidel, Jacobi and the conjugate-gradient solve give bitwise-identical results on rerun with 2
 // threads, and the same bits as with 1 thread (the colouring, not the threads, fixes the order of every sum).
 TEST(SolverSchemes, ParallelSchemesAreDeterministic) {
-  const SphereProblem s = makeSphere(4);  // 5120 rows: several hundred per colour, so the threads share the work
+  const SphereProblem s = sphereProblem(4);  // 5120 rows: several hundred per colour, so the threads share the work
   for (Scheme scheme : {Scheme::ColouredGaussSeidel, Scheme::Jacobi, Scheme::Xpbd, Scheme::Implicit}) {
     std::vector<Points> out;
     for (int threads : {2, 2, 1}) {
@@ -275,11 +179,11 @@ TEST(SolverSchemes, ParallelSchemesAreDeterministic) {
 
 // XPBD stiffness from 0 to hard: k = 0 moves nothing, tiny k barely moves, k = 1e12 and +inf act as hard constraints.
 TEST(SolverExtremes, XpbdStiffness) {
-  const SphereProblem s = makeSphere(2);
+  const SphereProblem s = sphereProblem(2);
   for (double k : {0.0, 1e-12, 1.0, 1e12, std::numeric_limits<double>::infinity()}) {
     SolverOptions o = optionsFor(Scheme::Xpbd);
     o.stiffness = k;
-    const RunResult r = run(o, s, 800, 1e-7, &s.expected);
+    const SphereRun r = runSphereProblem(o, s, 800, 1e-7, &s.expected);
     ASSERT_TRUE(r.x.allFinite()) << "k " << k;
     const double moved = (r.x - s.x0).rowwise().norm().maxCoeff();
     EXPECT_LT(moved, 2.5) << "k " << k;  // targets are 2 mm away
@@ -296,12 +200,12 @@ TEST(SolverExtremes, XpbdStiffness) {
 // dt from 1e-6 to 10: the position-based and force-based schemes (α = γ m̄ dt⁻²) give the same answer at any dt;
 // XPBD (absolute stiffness) stays bounded.
 TEST(SolverExtremes, TimeStep) {
-  const SphereProblem s = makeSphere(1);
+  const SphereProblem s = sphereProblem(1);
   for (Scheme scheme : msk::allSchemes()) {
     for (double dt : {1e-6, 1e-3, 1.0, 10.0}) {
       SolverOptions o = optionsFor(scheme);
       o.dt = dt;
-      const RunResult r = run(o, s, 3000, 1e-7, &s.expected);
+      const SphereRun r = runSphereProblem(o, s, 3000, 1e-7, &s.expected);
       ASSERT_TRUE(r.x.allFinite()) << msk::schemeName(scheme) << " dt " << dt;
       EXPECT_LT((r.x - s.x0).rowwise().norm().maxCoeff(), 2.5) << msk::schemeName(scheme) << " dt " << dt;
       if (scheme != Scheme::Xpbd) {
@@ -314,7 +218,7 @@ TEST(SolverExtremes, TimeStep) {
 // Masses from 1e-9 to 1e9 in one system, plus fixed particles: no NaN or Inf, displacement bounded, and the run
 // either converges or stops with msk::Error.
 TEST(SolverExtremes, MassesAndFixedParticles) {
-  const SphereProblem s = makeSphere(1);
+  const SphereProblem s = sphereProblem(1);
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> exponent(-9, 9);
   Eigen::VectorXd w(s.w.size());
@@ -355,7 +259,7 @@ TEST(SolverExtremes, NonFiniteResultIsReportedAndNotKept) {
     std::string name() const override { return "poison"; }
     void project(Points& p, const Eigen::VectorXd&) override { p(0, 0) = std::nan(""); }
   } poison;
-  const SphereProblem s = makeSphere(1);
+  const SphereProblem s = sphereProblem(1);
   for (Scheme scheme : msk::allSchemes()) {
     for (msk::RowlessSets mode : {msk::RowlessSets::Project, msk::RowlessSets::Blend}) {
       SolverOptions o = optionsFor(scheme);
@@ -365,38 +269,6 @@ TEST(SolverExtremes, NonFiniteResultIsReportedAndNotKept) {
       EXPECT_THROW(solver.step({s.internal.get(), &poison}), msk::Error) << msk::schemeName(scheme);
       EXPECT_TRUE(solver.positions().allFinite()) << msk::schemeName(scheme);
     }
-  }
-}
-
-// Figures for the report: cost and accuracy of each scheme on a 5120-vertex sphere (printed, never asserted on time).
-TEST(SolverFigures, TradeOffOnTheSphere) {
-  const SphereProblem s = makeSphere(4);
-  struct Setting {
-    const char* label;
-    SolverOptions o;
-  };
-  std::vector<Setting> settings;
-  auto add = [&](const char* label, Scheme scheme, int substeps, int iterations, int threads) {
-    SolverOptions o = optionsFor(scheme);
-    o.substeps = substeps;
-    o.iterations = iterations;
-    o.threads = threads;
-    settings.push_back({label, o});
-  };
-  add("gauss-seidel 1x1", Scheme::GaussSeidel, 1, 1, 1);
-  add("gauss-seidel 1x4", Scheme::GaussSeidel, 1, 4, 1);
-  add("coloured-gs 1x1", Scheme::ColouredGaussSeidel, 1, 1, 1);
-  add("coloured-gs 1x1 2thr", Scheme::ColouredGaussSeidel, 1, 1, 2);
-  add("jacobi 1x4", Scheme::Jacobi, 1, 4, 1);
-  add("xpbd 1x4", Scheme::Xpbd, 1, 4, 1);
-  add("xpbd 2x2", Scheme::Xpbd, 2, 2, 1);
-  add("explicit 4", Scheme::Explicit, 4, 1, 1);
-  add("implicit 1", Scheme::Implicit, 1, 1, 1);
-  for (const Setting& st : settings) {
-    const RunResult r = run(st.o, s, 2000, 1e-4, &s.expected);
-    EXPECT_TRUE(r.x.allFinite());
-    std::printf("[ figures  ] %-22s %4d steps to 1e-4 mm/step, max error %.2e mm, %.3f s (%.1f us/step)\n", st.label,
-                r.steps, r.error, r.seconds, 1e6 * r.seconds / r.steps);
   }
 }
 
@@ -422,53 +294,11 @@ TEST(SolverSchemes, VolumeModelReturnsToRestUnderEveryScheme) {
   }
 }
 
-// Figures for the report: 2-simplex internal projections per second (one set, 20480 vertices), by scheme and threads.
-TEST(SolverFigures, InternalProjectionsPerSecond) {
-  const SphereProblem s = makeSphere(5);
-  const std::vector<msk::ConstraintSet*> sets = {s.internal.get()};
-  const int n = s.internal->rowCount();
-  for (Scheme scheme : {Scheme::GaussSeidel, Scheme::ColouredGaussSeidel, Scheme::Jacobi, Scheme::Xpbd}) {
-    for (int threads : {1, 2}) {
-      if (scheme == Scheme::GaussSeidel && threads == 2) continue;
-      SolverOptions o = optionsFor(scheme);
-      o.iterations = 10;
-      o.threads = threads;
-      msk::Solver solver(o);
-      Points start = 1.05 * s.x0;
-      solver.prepare(start, s.w);
-      solver.step(sets);  // colouring and caches
-      const auto t0 = std::chrono::steady_clock::now();
-      for (int i = 0; i < 3; ++i) solver.step(sets);
-      const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      EXPECT_TRUE(solver.positions().allFinite());
-      std::printf("[ figures  ] %-22s %d thread(s): %.1f M internal projections/s (%.0f ns each)\n",
-                  msk::schemeName(scheme).c_str(), threads, 3.0 * o.iterations * n / sec / 1e6,
-                  1e9 * sec / (3.0 * o.iterations * n));
-    }
-  }
-}
-
 // XPBD with mass-relative stiffness k = 1 has the stiffness of the force-based schemes (α = γ m̄ dt⁻²), so its steady
 // state under competing constraints is the implicit scheme's equilibrium; and it does not change with the mass scale.
 TEST(SolverSchemes, MassRelativeXpbdSharesTheForceBasedEquilibrium) {
-  const SphereProblem s = makeSphere(1, false, 0.0);
-  const std::vector<msk::ConstraintSet*> sets = {s.internal.get(), s.targets.get()};
-  auto steady = [&](SolverOptions o, double massScale) {
-    msk::Solver solver(o);
-    solver.prepare(s.x0, s.w / massScale);
-    for (int i = 0; i < 600; ++i) solver.step(sets);
-    return Points(solver.positions());
-  };
-  SolverOptions x = optionsFor(Scheme::Xpbd);
-  x.xpbdStiffness = msk::XpbdStiffness::MassRelative;
-  x.stiffness = 1.0;
-  x.iterations = 20;
-  const Points xp = steady(x, 1.0), xpHeavy = steady(x, 1e6);
-  const Points im = steady(optionsFor(Scheme::Implicit), 1.0);
-  const double moved = (im - s.x0).rowwise().norm().maxCoeff();
-  ASSERT_GT(moved, 0.5);
-  const double dev = (xp - im).rowwise().norm().maxCoeff() / moved;
-  std::printf("[ figures  ] mass-relative xpbd vs implicit steady state: %.3f %% of %.2f mm\n", 100 * dev, moved);
-  EXPECT_LT(dev, 0.02);
-  EXPECT_LT((xp - xpHeavy).rowwise().norm().maxCoeff(), 1e-6 * moved);
+  const msk::test::MassRelativeXpbd f = msk::test::massRelativeXpbdAgainstImplicit();
+  ASSERT_GT(f.movedMm, 0.5);
+  EXPECT_LT(f.deviation, 0.02);
+  EXPECT_LT(f.heavierMm, 1e-6 * f.movedMm);
 }
