@@ -1,5 +1,6 @@
-// Mesh conversions and queries: the triangle ↔ simplex conversion, binding points to a surface, and rasterising a
-// surface on a large oblique grid. The tests check the results of the same operations; these time them.
+// Mesh conversions and queries: the triangle ↔ simplex conversion, binding points to a surface, rasterising a surface
+// on a large oblique grid, and a smooth template from a label. The tests check the results of the same operations;
+// these time them.
 // Run: build/bench/mesh_bench
 #include <benchmark/benchmark.h>
 
@@ -7,7 +8,9 @@
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/grid.h"
 #include "msk/imaging/rasterize.h"
+#include "msk/segmentation/template_builder.h"
 #include "msk/test/shapes.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -57,6 +60,23 @@ void BM_RasterizeLargeGrid(benchmark::State& state) {
   state.counters["voxels"] = static_cast<double>(g.voxelCount());
 }
 BENCHMARK(BM_RasterizeLargeGrid)->Unit(benchmark::kMillisecond);
+
+// A smooth template (3000 vertices) from a ball of radius 15 mm labelled on 1 × 1 × 3 mm voxels, off the voxel
+// lattice; its volume against the ball's. (TemplateBuilder.BallOnThickSlicesIsSmoothClosedAndTrue checks it.)
+void BM_TemplateFromBallLabels(benchmark::State& state) {
+  const Eigen::Vector3d c(10, -20, 30);
+  msk::Grid g;
+  g.spacing = {1.0, 1.0, 3.0};
+  g.dims = {48, 48, 18};
+  g.origin = c - g.spacing.cwiseProduct((g.dims.cast<double>() - Eigen::Vector3d::Ones()) / 2) +
+             Eigen::Vector3d(0.31, -0.17, 0.43);
+  const msk::LabelMap labels = msk::test::ballLabels(g, c, 15.0, 7);
+  msk::TriangleMesh m;
+  for (auto _ : state) m = msk::templateFromLabels(labels, 7);
+  state.counters["vertices"] = m.vertexCount();
+  state.counters["volume_vs_ball_pct"] = 100 * (msk::enclosedVolume(m) / (4.0 / 3.0 * M_PI * 15 * 15 * 15) - 1);
+}
+BENCHMARK(BM_TemplateFromBallLabels)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -1,10 +1,13 @@
 // Figures of the stability checks at the extremes (the tests assert their bounds on the same scenarios,
 // tests/support/*/msk/test/*_scenarios.h): momentum through whole position-based steps, the smoothing mode of the
-// internal constraint left alone.
-// Run: build/bench/stability_bench [--benchmark_filter=AngularMomentum]
+// internal constraint left alone, and the segmenter on a ball in metres against millimetres.
+// Run: build/bench/stability_bench [--benchmark_filter=MetreSpacing]
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+
 #include "msk/core/solver.h"
+#include "msk/test/ball_scenarios.h"
 #include "msk/test/solver_scenarios.h"
 
 namespace {
@@ -46,6 +49,22 @@ void BM_InternalSmoothingSteps(benchmark::State& state) {
   state.counters["radius_max_mm"] = r.second;
 }
 BENCHMARK(BM_InternalSmoothingSteps)->DenseRange(0, 5)->Unit(benchmark::kMillisecond);
+
+// The segmenter's ball scene with every length in metres against millimetres, with one or two levels (the argument):
+// the largest vertex difference in mm, and (two levels) the same with every length scaled by 2⁻¹⁰, exact in binary.
+// (SegmenterExtremes.MetreSpacing* assert 1e-3 mm for one level; 0, and 0.01 mm in metres, for two.)
+void BM_MetreSpacing(benchmark::State& state) {
+  const int levels = static_cast<int>(state.range(0));
+  double metres = 0, pow2 = 0;
+  for (auto _ : state) {
+    const msk::TriangleMesh mm = msk::test::ballInUnits(1.0, levels), m = msk::test::ballInUnits(1e-3, levels);
+    metres = (mm.vertices - m.vertices).cwiseAbs().maxCoeff();
+    if (levels > 1) pow2 = (mm.vertices - msk::test::ballInUnits(1.0 / 1024, levels).vertices).cwiseAbs().maxCoeff();
+  }
+  state.counters["metres_diff_mm"] = metres;
+  if (levels > 1) state.counters["pow2_diff_mm"] = pow2;
+}
+BENCHMARK(BM_MetreSpacing)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
 

@@ -1,4 +1,4 @@
-// Stability at the extremes (issue 5): the position-based solver and the constraint kernels under extreme stiffness,
+// Stability at the extremes: the position-based solver and the constraint kernels under extreme stiffness,
 // time steps, masses, units, degenerate elements and injected NaNs, and the momentum they carry.
 #include <algorithm>
 #include <cmath>

@@ -3,9 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 #include "msk/core/error.h"
@@ -59,9 +57,7 @@ TEST(TemplateBuilder, BallOnThickSlicesIsSmoothClosedAndTrue) {
     }
     const msk::LabelMap lab = ballLabels(c, r, 7, dir);
     msk::TemplateReport rep;
-    const auto t0 = std::chrono::steady_clock::now();
     const msk::TriangleMesh m = msk::templateFromLabels(lab, 7, {}, &rep);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ASSERT_EQ(msk::closedMeshProblem(m), "");
     EXPECT_DOUBLE_EQ(rep.sigmaMm, 1.5);  // default: half the largest spacing
     EXPECT_EQ(rep.componentsDropped, 0u);
@@ -73,9 +69,6 @@ TEST(TemplateBuilder, BallOnThickSlicesIsSmoothClosedAndTrue) {
     EXPECT_LT(st.maxAbs, 1.5);  // no 3 mm staircase left
     EXPECT_GE(m.vertexCount(), 2700);
     EXPECT_LE(m.vertexCount(), 3000);
-    std::printf("ball r=15 on 1x1x3 mm (%s): volume %+.2f %%, mean |r-15| %.3f mm, max %.3f mm, %d vertices, %.0f ms\n",
-                oblique ? "oblique" : "axis-aligned", 100 * (v / exact - 1), st.meanAbs, st.maxAbs, m.vertexCount(),
-                ms);
   }
 }
 
@@ -172,9 +165,7 @@ TEST(TemplateBuilder, RealCtFemur) {
   if (shared.empty()) GTEST_SKIP() << "shared data not available";
   const msk::LabelMap lab = msk::readNifti<int32_t>(shared + "/totalseg-ct/labels.nii.gz");
   msk::TemplateReport rep;
-  const auto t0 = std::chrono::steady_clock::now();
   const msk::TriangleMesh m = msk::templateFromLabels(lab, 75, {}, &rep);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(msk::closedMeshProblem(m), "");
   const double v = msk::enclosedVolume(m);
   EXPECT_NEAR(v, rep.maskVolumeMm3, 0.05 * rep.maskVolumeMm3);
@@ -198,8 +189,4 @@ TEST(TemplateBuilder, RealCtFemur) {
   EXPECT_EQ(msk::closedMeshProblem(mirrored), "");
   EXPECT_NEAR(msk::enclosedVolume(mirrored), v, 1e-6 * v);
   EXPECT_GT(msk::enclosedVolume(mirrored), 0);
-  std::printf(
-      "CT femur (label 75): %zu voxels, template %d vertices, volume %+.2f %% of the voxel volume, offset %.3f mm, "
-      "%.0f ms\n",
-      rep.voxels, m.vertexCount(), 100 * (v / rep.maskVolumeMm3 - 1), rep.offsetMm, ms);
 }
