@@ -172,9 +172,11 @@ BENCHMARK(BM_AxisFirstBentTube)->DenseRange(0, 2)->Unit(benchmark::kSecond)->Ite
 void BM_AxisFirstThighMuscle(benchmark::State& state, const char* name) {
   msk::test::DisplacedMuscleRuns r;
   for (auto _ : state) r = msk::test::runDisplacedThighMuscle(name);
-  const std::pair<const char*, const msk::SegmentationMetrics*> runs[] = {
-      {"template", &r.templ}, {"stage_alone", &r.stage}, {"no_axis", &r.plain}, {"axis", &r.axis},
-      {"axis_first", &r.first}};
+  const std::pair<const char*, const msk::SegmentationMetrics*> runs[] = {{"template", &r.templ},
+                                                                          {"stage_alone", &r.stage},
+                                                                          {"no_axis", &r.plain},
+                                                                          {"axis", &r.axis},
+                                                                          {"axis_first", &r.first}};
   for (const auto& [run, m] : runs) {
     state.counters[std::string(run) + "_dice"] = m->dice;
     state.counters[std::string(run) + "_assd_mm"] = m->assd;

@@ -39,7 +39,8 @@ void sceneCounters(benchmark::State& state, const msk::test::SceneScore& sc) {
 }
 
 // totalseg-mr: the left and right autochthon muscles with the vertebrae as bones, templates displaced by 3 mm and
-// scaled by ±3 %. (RealScenes.MrAutochthonMusclesWithTheVertebrae asserts muscles ≥ 0.90, vertebrae ≥ 0.92, no overlap.)
+// scaled by ±3 %. (RealScenes.MrAutochthonMusclesWithTheVertebrae asserts muscles ≥ 0.90, vertebrae ≥ 0.92, no
+// overlap.)
 void BM_RealMrScene(benchmark::State& state) {
   const std::string data = dataOrSkip(state);
   if (data.empty()) return;
@@ -63,9 +64,9 @@ void BM_RealCtScene(benchmark::State& state) {
   sceneCounters(state, sc);
   const char* classes[] = {"fat", "bone", "partners", "other"};
   for (size_t i = 2; i < 4 && i < sc.objects.size(); ++i) {
-    const std::vector<msk::test::BoundaryClassError> errors = msk::test::errorByOutside(
-        sc.result.objects[i].mesh, rs.reference, sc.objects[i].label, rs.image,
-        i == 2 ? std::vector<int>{83, 85} : std::vector<int>{81, 85}, {76, 78});
+    const std::vector<msk::test::BoundaryClassError> errors =
+        msk::test::errorByOutside(sc.result.objects[i].mesh, rs.reference, sc.objects[i].label, rs.image,
+                                  i == 2 ? std::vector<int>{83, 85} : std::vector<int>{81, 85}, {76, 78});
     for (size_t c = 0; c < errors.size(); ++c) {
       const std::string key = sc.objects[i].name + "_" + classes[c];
       state.counters[key + "_vertices"] = errors[c].vertices;

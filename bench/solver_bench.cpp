@@ -25,7 +25,8 @@ void BM_SchemeConvergence(benchmark::State& state) {
   const Scheme scheme = schemeAt(state.range(0));
   const msk::test::SphereProblem s = msk::test::sphereProblem(2);
   msk::test::SphereRun r;
-  for (auto _ : state) r = msk::test::runSphereProblem(msk::test::sphereProblemOptions(scheme), s, 3000, 1e-7, &s.expected);
+  for (auto _ : state)
+    r = msk::test::runSphereProblem(msk::test::sphereProblemOptions(scheme), s, 3000, 1e-7, &s.expected);
   state.SetLabel(msk::schemeName(scheme));
   state.counters["steps"] = r.steps;
   state.counters["converged"] = r.converged;

@@ -63,11 +63,24 @@ void BM_VolumeModelMovedTruth(benchmark::State& state, const char* muscle) {
   volumeCounters(state, r);
 }
 BENCHMARK_CAPTURE(BM_VolumeModelMovedTruth, hamstrings, "hamstrings")
-    ->Args({4, 100})->Args({4, 92})->Args({4, 95})->Args({4, 105})->Unit(benchmark::kSecond)->Iterations(1);
+    ->Args({4, 100})
+    ->Args({4, 92})
+    ->Args({4, 95})
+    ->Args({4, 105})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 BENCHMARK_CAPTURE(BM_VolumeModelMovedTruth, quadriceps, "quadriceps")
-    ->Args({4, 100})->Args({4, 95})->Args({4, 105})->Unit(benchmark::kSecond)->Iterations(1);
+    ->Args({4, 100})
+    ->Args({4, 95})
+    ->Args({4, 105})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 BENCHMARK_CAPTURE(BM_VolumeModelMovedTruth, adductors, "adductors")
-    ->Args({4, 100})->Args({4, 95})->Args({4, 105})->Unit(benchmark::kSecond)->Iterations(1);
+    ->Args({4, 100})
+    ->Args({4, 95})
+    ->Args({4, 105})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 // The left autochthon muscle of totalseg-mr (profile force) from its own label moved and rotated (arguments: the angle
 // in degrees, the scale in %). Skipped without ../shared/data.
@@ -84,8 +97,13 @@ void BM_VolumeModelRealAutochthon(benchmark::State& state) {
   volumeCounters(state, r);
 }
 BENCHMARK(BM_VolumeModelRealAutochthon)
-    ->Args({4, 100})->Args({4, 92})->Args({3, 100})->Args({3, 95})->Args({3, 105})
-    ->Unit(benchmark::kSecond)->Iterations(1);
+    ->Args({4, 100})
+    ->Args({4, 92})
+    ->Args({3, 100})
+    ->Args({3, 95})
+    ->Args({3, 105})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 // What the mesh optimisers cost: a phantom muscle's template tetrahedralised at the segmenter's sizes (facets of its
 // mean edge, cells 1.5 times that) plain (argument 0), with ODT, perturbation and exudation (1), and also with interior
@@ -117,11 +135,17 @@ void BM_Tetrahedralisation(benchmark::State& state, const char* muscle) {
                                 : "optimised + tets split");
 }
 BENCHMARK_CAPTURE(BM_Tetrahedralisation, hamstrings, "hamstrings")
-    ->DenseRange(0, 3)->Unit(benchmark::kSecond)->Iterations(1);
+    ->DenseRange(0, 3)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 BENCHMARK_CAPTURE(BM_Tetrahedralisation, quadriceps, "quadriceps")
-    ->DenseRange(0, 3)->Unit(benchmark::kSecond)->Iterations(1);
+    ->DenseRange(0, 3)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 BENCHMARK_CAPTURE(BM_Tetrahedralisation, adductors, "adductors")
-    ->DenseRange(0, 3)->Unit(benchmark::kSecond)->Iterations(1);
+    ->DenseRange(0, 3)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 // The bundled thigh scene, fast quality, the quadriceps volumetric among its collision partners: how many of the
 // quadriceps' surface vertices have no tet boundary node on them after the separation and untangling, and how far the

@@ -1,7 +1,7 @@
 // End-to-end tests of `mskseg bench`: subcommand dispatch, one-line usage errors with exit code 2, a small fast
-// `bench scene` run (the thigh scene on a coarse grid) that prints its figures and writes them atomically, and a small
-// `bench tradeoff` run (one phantom, two schemes and one preset) writing the CSV with its header and rows and a PNG that
-// decodes.
+// `bench scene` run (the thigh scene on a coarse grid) that prints its figures and writes them atomically, and a
+// small `bench tradeoff` run (one phantom, two schemes and one preset) writing the CSV with its header and rows and a
+// PNG that decodes.
 #include <gtest/gtest.h>
 
 #include <filesystem>

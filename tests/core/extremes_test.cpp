@@ -503,8 +503,8 @@ TEST(ExtremeMomentum, InternalAndCollisionCorrectionsConserveLinearMomentum) {
 // correction carries none at the positions it is applied to, but a sweep applies them one after the other at moving
 // positions (second order in the corrections), about 4% of them take the λ = ε̃ fallback (linear momentum only), and
 // the contact corrections are not central. Budget per step, relative to Σ m|x||v|: 5e-3 (measured 2e-4 for the
-// internal sets alone and with collisions at γ = 0.5 on this case: BM_AngularMomentumDrift in bench/stability_bench.cpp).
-// Linear momentum: 1e-9 relative.
+// internal sets alone and with collisions at γ = 0.5 on this case: BM_AngularMomentumDrift in
+// bench/stability_bench.cpp). Linear momentum: 1e-9 relative.
 TEST(ExtremeMomentum, AngularMomentumDriftPerStepWithinBudget) {
   for (const bool collide : {false, true}) {
     const msk::test::MomentumDrift d = msk::test::momentumDrift(collide);

@@ -12,8 +12,8 @@
 // The rows of a 2-simplex sphere's shape memory, coloured: rows of one colour share no particle.
 TEST(GraphColouring, NoColourSharesAParticleAndEveryConstraintIsColouredOnce) {
   const msk::SimplexInternalConstraints set(msk::test::simplexSphere(10.0, 3), 0.8);
-  const msk::Colouring c = msk::colourConstraints(
-      set.rowCount(), msk::kMaxRowParticles, [&](int r, int* out) { return set.rowParticles(r, out); });
+  const msk::Colouring c = msk::colourConstraints(set.rowCount(), msk::kMaxRowParticles,
+                                                  [&](int r, int* out) { return set.rowParticles(r, out); });
   EXPECT_GE(c.colours(), 4);
   EXPECT_LE(c.colours(), 13);  // Δ + 1: a row shares particles with at most 12 others on a 2-simplex mesh
   std::vector<int> seen(static_cast<size_t>(set.rowCount()), 0);

@@ -1,8 +1,8 @@
 #include "msk/core/shape_matching_constraint.h"
 
-#include <gtest/gtest.h>
-
 #include <random>
+
+#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"

@@ -1,10 +1,10 @@
 #include "msk/core/transform_fit.h"
 
-#include <gtest/gtest.h>
-
-#include <Eigen/Geometry>
 #include <random>
 #include <utility>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
 
 #include "msk/test/shapes.h"
 

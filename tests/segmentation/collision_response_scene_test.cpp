@@ -89,8 +89,8 @@ TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
     opts.collision.resolution = c.resolution;  // no pair sets its own
     const msk::test::ThighRun run = msk::test::segmentThigh(thigh, scene, opts);
     const msk::SegmentationResult& res = run.res;
-    for (int l = 1; l <= 4; ++l)
-      EXPECT_GT(run.dice[l - 1], defaultDice[l - 1] - 0.01) << c.name << " " << res.objects[static_cast<size_t>(l - 1)].name;
+    for (size_t i = 0; i < 4; ++i)
+      EXPECT_GT(run.dice[i], defaultDice[i] - 0.01) << c.name << " " << res.objects[i].name;
     EXPECT_EQ(res.overlapVoxels, 0u) << c.name;
     for (double d : res.pairPenetrationMm) EXPECT_LE(d, 0.1) << c.name;
     const msk::Json j = msk::settingsJson(opts, res);

@@ -1,6 +1,7 @@
-// Stability of the segmentation pipeline at the extremes: very anisotropic voxels, a constant image, a pure noise image,
-// a NaN voxel and an image in metre units. Small grids, one or two levels and a coarse template keep every case fast.
-// The scenes in other units are shared with bench/stability_bench.cpp, which reports their figures (BM_MetreSpacing).
+// Stability of the segmentation pipeline at the extremes: very anisotropic voxels, a constant image, a pure noise
+// image, a NaN voxel and an image in metre units. Small grids, one or two levels and a coarse template keep every case
+// fast. The scenes in other units are shared with bench/stability_bench.cpp, which reports their figures
+// (BM_MetreSpacing).
 #include <cmath>
 #include <limits>
 #include <random>

@@ -57,7 +57,8 @@ TEST(FemurPhantom, PresetsGainAccuracyFromFastToAccurate) {
 // A template is never exactly in place: displaced by several mm and scaled by ±5 %, the femur still converges.
 TEST(FemurPhantom, DisplacedAndScaledTemplate) {
   const msk::test::FemurCase c = msk::test::bundledFemur();
-  for (auto [shift, scale] : {std::pair{Eigen::Vector3d(5, -3, 4), 1.05}, std::pair{Eigen::Vector3d(-3, 3, -4), 0.95}}) {
+  for (auto [shift, scale] :
+       {std::pair{Eigen::Vector3d(5, -3, 4), 1.05}, std::pair{Eigen::Vector3d(-3, 3, -4), 0.95}}) {
     const msk::TriangleMesh t = msk::test::displacedScaled(c.templ, shift, scale);
     checkFemur(c, &t, ", shifted " + std::to_string(shift.norm()) + " mm, scale " + std::to_string(scale));
   }

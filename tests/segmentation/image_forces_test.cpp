@@ -44,8 +44,8 @@ ImageF makeImage(const Eigen::Vector3d& spacing, const Eigen::Vector3d& rotation
 /// `blurMm`.
 ImageF ballImage(const Eigen::Vector3d& spacing, double halfExtentMm, float inside, float outside,
                  double blurMm = 0.5) {
-  return gaussianSmooth(test::ballImage(ballGrid(spacing, {10, -5, 20}, halfExtentMm), kCenter, kRadius, inside, outside),
-                        blurMm);
+  const Grid g = ballGrid(spacing, {10, -5, 20}, halfExtentMm);
+  return gaussianSmooth(test::ballImage(g, kCenter, kRadius, inside, outside), blurMm);
 }
 
 /// The T1-like ball: 200 inside radius 20 mm, 800 outside (DarkInside), on 1.2×1.2×3 mm rotated (10°, −5°, 20°).

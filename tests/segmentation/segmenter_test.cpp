@@ -236,7 +236,8 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
 // Collision detection runs its sets on --threads threads; the result is the same as on one.
 TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   const msk::Grid g = cubeGrid(1.0, 30);
-  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
+  const msk::ImageF img =
+      msk::test::ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
   msk::Scene scene = oneObjectScene(msk::makeIcosphere(10, 3, {-7, 0, 0}));
   msk::SceneObject other = scene.objects[0];
   other.name = "other";

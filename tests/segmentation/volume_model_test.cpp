@@ -4,8 +4,8 @@
 // the true surface, and the model must reach it rather than keep the template's. "The image demands otherwise" is
 // therefore decided by the ground truth: whether the true volume differs from the template's. The muscles: the bundled
 // phantom's hamstrings and, when the shared data are there, the left autochthon muscle of totalseg-mr from its own
-// label. The scenarios are shared with bench/volume_model_bench.cpp, which reports their figures (and those of the other
-// phantom muscles, other scales and the tetrahedralisation's cost).
+// label. The scenarios are shared with bench/volume_model_bench.cpp, which reports their figures (and those of the
+// other phantom muscles, other scales and the tetrahedralisation's cost).
 #include <cmath>
 #include <vector>
 

@@ -35,10 +35,17 @@ SolverOptions sphereProblemOptions(Scheme scheme) {
   o.scheme = scheme;
   o.iterations = 4;
   switch (scheme) {
-    case Scheme::Jacobi: o.omega = 1.5; break;
-    case Scheme::Xpbd: o.stiffness = 1e6; break;
-    case Scheme::Explicit: o.substeps = 4; break;
-    default: break;
+    case Scheme::Jacobi:
+      o.omega = 1.5;
+      break;
+    case Scheme::Xpbd:
+      o.stiffness = 1e6;
+      break;
+    case Scheme::Explicit:
+      o.substeps = 4;
+      break;
+    default:
+      break;
   }
   return o;
 }

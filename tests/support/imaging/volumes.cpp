@@ -19,8 +19,8 @@ ImageF partialVolumeImage(const Grid& grid, const std::function<bool(const Eigen
         for (int a = 0; a < ss; ++a)
           for (int b = 0; b < ss; ++b)
             for (int c = 0; c < ss; ++c)
-              in += isInside(grid.toWorld(Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5,
-                                                          k + (c + 0.5) / ss - 0.5)));
+              in += isInside(grid.toWorld(
+                  Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5)));
         const double f = static_cast<double>(in) / (ss * ss * ss);
         img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
       }
@@ -37,8 +37,8 @@ ImageF sampledImage(const Grid& grid, const std::function<double(const Eigen::Ve
         for (int a = 0; a < ss; ++a)
           for (int b = 0; b < ss; ++b)
             for (int c = 0; c < ss; ++c)
-              sum += intensity(grid.toWorld(Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5,
-                                                            k + (c + 0.5) / ss - 0.5)));
+              sum += intensity(grid.toWorld(
+                  Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5)));
         img.at(i, j, k) = static_cast<float>(sum / (ss * ss * ss));
       }
   return img;

@@ -37,7 +37,8 @@ Grid tubeGrid() {
 }
 
 ImageF tubeImage(const Grid& g, const BentTube& t) {
-  return partialVolumeImage(g, [&](const Eigen::Vector3d& x) { return t.inside(x); }, 800.f, 200.f);
+  return partialVolumeImage(
+      g, [&](const Eigen::Vector3d& x) { return t.inside(x); }, 800.f, 200.f);
 }
 
 Scene tubeScene(const TriangleMesh& templ, bool medialAxis, bool axisFirst) {

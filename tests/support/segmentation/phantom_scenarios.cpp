@@ -128,8 +128,8 @@ void septaErrors(const Phantom& p, const TriangleMesh& truth, const TriangleMesh
   for (int v = 0; v < truth.vertexCount(); ++v) {
     const Eigen::Vector3d x = truth.vertices.row(v).transpose(), n = normals.row(v).transpose();
     const int out = tissueAt(p, x + 1.5 * n);
-    const bool missing = out == static_cast<int>(PhantomTissue::Muscle) ||
-                         out == static_cast<int>(PhantomTissue::IntramuscularFat);
+    const bool missing =
+        out == static_cast<int>(PhantomTissue::Muscle) || out == static_cast<int>(PhantomTissue::IntramuscularFat);
     const SurfacePoint s = surface.closest(result.vertices, x, 20.0);
     const double d = s.triangle < 0 ? 20.0 : s.distance;
     (missing ? missingMm : otherMm) += d;

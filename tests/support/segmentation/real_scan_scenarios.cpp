@@ -18,14 +18,15 @@ namespace msk::test {
 namespace {
 
 const Eigen::Vector3d kDirections[] = {Eigen::Vector3d(1, 1, 1).normalized(), Eigen::Vector3d(-1, 1, -1).normalized(),
-                                       Eigen::Vector3d(1, -1, -1).normalized(), Eigen::Vector3d(-1, -1, 1).normalized()};
+                                       Eigen::Vector3d(1, -1, -1).normalized(),
+                                       Eigen::Vector3d(-1, -1, 1).normalized()};
 constexpr double kScales[] = {1.03, 0.97, 1.03, 0.97};
 
 /// The affine map from a template made by displacedScaled(mirrored, offset, scale) back to the contralateral
 /// structure it was mirrored from (the scene's profile source): undo the displacement and scale about the centroid,
 /// then mirror across x = midX.
-Eigen::Matrix4d sourceOfTemplate(const TriangleMesh& templ, const Eigen::Vector3d& offsetMm, double scale,
-                                 double midX, const Eigen::Matrix4d& pose = Eigen::Matrix4d::Identity()) {
+Eigen::Matrix4d sourceOfTemplate(const TriangleMesh& templ, const Eigen::Vector3d& offsetMm, double scale, double midX,
+                                 const Eigen::Matrix4d& pose = Eigen::Matrix4d::Identity()) {
   const Eigen::Vector3d c = templ.vertices.colwise().mean().transpose();  // = mirrored centroid + offset
   Eigen::Matrix4d undo = Eigen::Matrix4d::Identity();
   undo.topLeftCorner<3, 3>() /= scale;
@@ -54,7 +55,7 @@ RealScene makeRealScene(const ImageF& image, const LabelMap& labels, const std::
     const Eigen::Vector3d offset = displacementMm * kDirections[i % 4];
     const double scale = displacementMm > 0 ? kScales[i % 4] : 1.0;
     TriangleMesh mirrored = specs[i].mirror ? mirroredTemplate(labels, specs[i].templateFrom, midX, topts)
-                                                 : templateFromLabels(labels, specs[i].templateFrom, topts);
+                                            : templateFromLabels(labels, specs[i].templateFrom, topts);
     const Eigen::Matrix4d& pose = specs[i].pose;
     mirrored.vertices = ((mirrored.vertices * pose.topLeftCorner<3, 3>().transpose()).rowwise() +
                          pose.topRightCorner<3, 1>().transpose())
@@ -138,8 +139,9 @@ RigidFitScore rigidFitOfMirror(const LabelMap& labels, int from, int to, double 
         for (int i = 0; i < g.dims[0]; ++i) {
           if (labels.at(i, j, k) != label) continue;
           bool edge = false;
-          for (const Eigen::Vector3i& d : {Eigen::Vector3i(1, 0, 0), Eigen::Vector3i(-1, 0, 0), Eigen::Vector3i(0, 1, 0),
-                                          Eigen::Vector3i(0, -1, 0), Eigen::Vector3i(0, 0, 1), Eigen::Vector3i(0, 0, -1)}) {
+          for (const Eigen::Vector3i& d :
+               {Eigen::Vector3i(1, 0, 0), Eigen::Vector3i(-1, 0, 0), Eigen::Vector3i(0, 1, 0),
+                Eigen::Vector3i(0, -1, 0), Eigen::Vector3i(0, 0, 1), Eigen::Vector3i(0, 0, -1)}) {
             const Eigen::Vector3i u = Eigen::Vector3i(i, j, k) + d;
             edge = edge || !g.contains(u[0], u[1], u[2]) || labels.at(u[0], u[1], u[2]) != label;
           }
@@ -259,11 +261,11 @@ RealScene ctScene(const std::string& data, double displacementMm, const Eigen::M
   const Eigen::Matrix4d id = Eigen::Matrix4d::Identity();
   const bool mirror = !ownLabels;
   return makeRealScene(ct, labels,
-                   {{"femur_right", 76, mirror ? 75 : 76, ObjectKind::Bone, id, mirror},
-                    {"hip_right", 78, mirror ? 77 : 78, ObjectKind::Bone, id, mirror},
-                    {"gluteus_maximus_right", 81, mirror ? 80 : 81, ObjectKind::Muscle, id, mirror},
-                    {"gluteus_medius_right", 83, mirror ? 82 : 83, ObjectKind::Muscle, mediusPose, mirror}},
-                   midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, displacementMm);
+                       {{"femur_right", 76, mirror ? 75 : 76, ObjectKind::Bone, id, mirror},
+                        {"hip_right", 78, mirror ? 77 : 78, ObjectKind::Bone, id, mirror},
+                        {"gluteus_maximus_right", 81, mirror ? 80 : 81, ObjectKind::Muscle, id, mirror},
+                        {"gluteus_medius_right", 83, mirror ? 82 : 83, ObjectKind::Muscle, mediusPose, mirror}},
+                       midX, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}}, 3000, displacementMm);
 }
 
 SceneScore runCtScene(RealScene& rs, bool edgeLevel) {

@@ -11,7 +11,8 @@ namespace msk::test {
 
 /// Simplex sphere of radius `radiusMm` about `centre` (mm): the dual of makeIcosphere(radiusMm, subdivisions, centre),
 /// 20·4^subdivisions vertices.
-SimplexMesh simplexSphere(double radiusMm, int subdivisions = 2, const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
+SimplexMesh simplexSphere(double radiusMm, int subdivisions = 2,
+                          const Eigen::Vector3d& centre = Eigen::Vector3d::Zero());
 
 /// `p` with a deterministic uniform perturbation of ±amplitude (mm) per coordinate (std::mt19937 seeded by `seed`).
 Points perturbed(const Points& p, double amplitude, unsigned seed = 1);

@@ -61,9 +61,9 @@ std::vector<double> iterationDeviations(Scheme scheme, const std::vector<int>& i
 /// XPBD with mass-relative stiffness k = 1 against the implicit scheme at their steady states (600 steps of the
 /// inconsistent problem without prior, 80 vertices).
 struct MassRelativeXpbd {
-  double movedMm = 0;      ///< the implicit result's largest displacement from x0
-  double deviation = 0;    ///< largest XPBD − implicit distance, as a share of movedMm
-  double heavierMm = 0;    ///< largest XPBD difference between unit masses and masses × 1e6
+  double movedMm = 0;    ///< the implicit result's largest displacement from x0
+  double deviation = 0;  ///< largest XPBD − implicit distance, as a share of movedMm
+  double heavierMm = 0;  ///< largest XPBD difference between unit masses and masses × 1e6
 };
 MassRelativeXpbd massRelativeXpbdAgainstImplicit();
 

@@ -1,8 +1,8 @@
 #pragma once
 /// Axis-first scenarios, shared by tests/segmentation/axis_first_stage_test.cpp (which asserts on them) and
 /// bench/phantom_bench.cpp (which reports their figures): a tube bent in the image reached from a straight, displaced
-/// template, and the bundled phantom's hamstrings and adductors from moved templates, each with no medial axis, with the
-/// axis alone and with the axis evolved first.
+/// template, and the bundled phantom's hamstrings and adductors from moved templates, each with no medial axis, with
+/// the axis alone and with the axis evolved first.
 #include <string>
 #include <vector>
 

@@ -96,10 +96,10 @@ struct ThighObjectScore {
 struct ThighSceneScore {
   size_t objectsInScene = 0, collisionPairs = 0;
   std::vector<ThighObjectScore> objects;
-  double meanAssd = 0;           ///< mean of the objects' mesh ASSD, mm
-  size_t overlapVoxels = 0;      ///< voxels inside two output surfaces
+  double meanAssd = 0;       ///< mean of the objects' mesh ASSD, mm
+  size_t overlapVoxels = 0;  ///< voxels inside two output surfaces
   long overlapVoxelsRepaired = 0;
-  double deepestMm = 0;          ///< deepest vertex inside a partner over every pair
+  double deepestMm = 0;  ///< deepest vertex inside a partner over every pair
   /// Mean distance (mm) from the muscles' truth vertices to their result surface where the fat septum between two
   /// muscles is missing (muscle 1.5 mm outside the truth vertex along its normal), and elsewhere; vertex counts.
   double septaMissingMm = 0, septaOtherMm = 0;

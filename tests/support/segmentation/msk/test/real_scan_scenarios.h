@@ -3,7 +3,8 @@
 /// them) and bench/real_scans_bench.cpp (which reports their figures). Every template is built from the contralateral
 /// label, mirrored across the sagittal plane through a midline landmark, and (in the scenes) displaced by 3 mm and
 /// scaled by ±3 % (a template is never exactly in place); the profile force learns each object's profiles on the
-/// structure its template came from. Scores are taken on the full grid against the reference labels (TotalSegmentator's).
+/// structure its template came from. Scores are taken on the full grid against the reference labels
+/// (TotalSegmentator's).
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,8 +74,8 @@ SceneScore runRealScene(const RealScene& rs, const SegmentOptions& opts);
 int splitComponents(LabelMap& labels, int label, int firstLabel, size_t minVoxels);
 
 /// How well the mirrored contralateral label can match at best: the Dice against label `to` of label `from` mirrored
-/// across x = midX, as is and after its best rigid fit onto `to` (point-to-point ICP over the two labels' boundary voxel
-/// centres, world mm); the fit's rotation (degrees) and how far it moves the mirrored boundary's centroid (mm).
+/// across x = midX, as is and after its best rigid fit onto `to` (point-to-point ICP over the two labels' boundary
+/// voxel centres, world mm); the fit's rotation (degrees) and how far it moves the mirrored boundary's centroid (mm).
 struct RigidFitScore {
   double mirrorDice = 0, fittedDice = 0, rotationDeg = 0, centroidMoveMm = 0;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  ///< the fit: mirrored label → `to` (world mm)

@@ -32,7 +32,7 @@ struct VolumeRun {
   int invertedSlivers = 0;          ///< inverted tets that were slivers at rest
   double invertedRestDeg = 0;       ///< the largest rest min-dihedral angle of an inverted tet
   double templateMm3 = 0, modelMm3 = 0, truthMm3 = 0, surfaceMm3 = 0;
-  std::string decision;             ///< the volume constraint's decision (ObjectResult::volumeDecision)
+  std::string decision;  ///< the volume constraint's decision (ObjectResult::volumeDecision)
   double dice = 0, templateDice = 0, seconds = 0;
   /// Volume change of the model against its template, %.
   double changePercent() const { return 100.0 * (modelMm3 / templateMm3 - 1.0); }
