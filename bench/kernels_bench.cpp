@@ -5,13 +5,12 @@
 //
 // Meshes: simplex spheres, dual of an icosphere subdivided s = 3..8 times (20·4^s vertices: 1 280 .. 1 310 720);
 // volume models: dual of an n³ block of Freudenthal cubes (6n³ tets + 12n² ghosts). Every sweep is one pass over all
-// constraints of a set in its own (Gauss–Seidel) order, single-threaded.
+// constraints of a set in its own (Gauss–Seidel) order, single-threaded (BM_SolverInternalThreads: 1 and 2 threads).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <map>
 #include <memory>
-#include <random>
 #include <utility>
 
 #include "msk/core/collision_surface.h"
@@ -27,6 +26,8 @@
 #include "msk/core/volume_simplex.h"
 #include "msk/core/constraint_set.h"
 #include "msk/core/transform_fit.h"
+#include "msk/test/shapes.h"
+#include "msk/test/solver_scenarios.h"
 
 namespace {
 
@@ -37,16 +38,13 @@ constexpr int kMinLevel = 3, kMaxLevel = 8;
 const std::pair<msk::TriangleMesh, msk::SimplexMesh>& unitSphere(int s) {
   static std::map<int, std::pair<msk::TriangleMesh, msk::SimplexMesh>> cache;
   auto it = cache.find(s);
-  if (it == cache.end()) {
-    msk::TriangleMesh t = msk::makeIcosphere(1.0, s);
-    msk::SimplexMesh m = msk::simplexFromTriangles(t);
-    it = cache.emplace(s, std::make_pair(std::move(t), std::move(m))).first;
-  }
+  if (it == cache.end())
+    it = cache.emplace(s, std::make_pair(msk::makeIcosphere(1.0, s), msk::test::simplexSphere(1.0, s))).first;
   return it->second;
 }
 
 /// Simplex sphere of radius r (mm) at subdivision s.
-msk::SimplexMesh simplexSphere(int s, double r) {
+msk::SimplexMesh scaledSphere(int s, double r) {
   msk::SimplexMesh m = unitSphere(s).second;
   m.positions *= r;
   return m;
@@ -60,15 +58,7 @@ double meanSimplexEdge(const msk::SimplexMesh& m) {
   return sum / (3.0 * m.vertexCount());
 }
 
-/// Positions of `m` with a small deterministic random perturbation (so every constraint has work to do).
-msk::Points perturbed(const msk::Points& p, double amplitude, unsigned seed = 1) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-amplitude, amplitude);
-  msk::Points q = p;
-  for (int i = 0; i < q.rows(); ++i)
-    for (int c = 0; c < 3; ++c) q(i, c) += u(rng);
-  return q;
-}
+using msk::test::perturbed;
 
 /// The timed loop of a constraint set's benchmark: one ConstraintSet::project() sweep of `c` over `p` per iteration.
 void projectEveryIteration(benchmark::State& state, msk::ConstraintSet& c, msk::Points& p, const Eigen::VectorXd& w) {
@@ -91,7 +81,7 @@ void finish(benchmark::State& state, int64_t perSweep, int64_t n, int64_t comple
 
 // 2-simplex internal constraint (shape memory), one Gauss–Seidel sweep over every vertex of a sphere of radius 50 mm.
 void BM_SimplexInternal(benchmark::State& state) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   msk::SimplexInternalConstraints c(s, 0.5);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
@@ -103,7 +93,7 @@ BENCHMARK(BM_SimplexInternal)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark:
 
 // 2-simplex internal constraint, smoothing mode (ε̃ = 1/3, neighbourhood-mean heights: two extra passes).
 void BM_SimplexInternalSmoothing(benchmark::State& state) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   msk::SimplexInternalConstraints c(s, 0.5, msk::InternalMode::Smoothing);
   msk::Points p = perturbed(s.positions, 0.2 * meanSimplexEdge(s));
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
@@ -136,7 +126,7 @@ BENCHMARK(BM_SimplexInternalKernelOnly);
 // its locality order; on one thread, from 32 768 vertices, the colours as a wavefront and Jacobi fused (compute and
 // apply chunk by chunk). The step's own passes (prediction, velocities, damping) are included.
 void BM_SolverInternal(benchmark::State& state, msk::Scheme scheme) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::SimplexInternalConstraints c(s, 1.0);
   msk::SolverOptions o;
@@ -159,6 +149,33 @@ BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
 BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
     ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
 
+// The same set of the sphere problem of the solver's tests (radius 10 mm, 20 480 vertices, γ = 0.8) on 1 and 2 threads
+// (the argument), each scheme at its test settings with 10 iterations per step, from the sphere scaled by 1.05: items
+// = iterations × vertices per step, wall time (the threads share the step).
+void BM_SolverInternalThreads(benchmark::State& state, msk::Scheme scheme) {
+  const msk::test::SphereProblem s = msk::test::sphereProblem(5);
+  const int n = s.internal->rowCount();
+  msk::SolverOptions o = msk::test::sphereProblemOptions(scheme);
+  o.iterations = 10;
+  o.threads = static_cast<int>(state.range(0));
+  msk::Solver solver(o);
+  solver.prepare(1.05 * s.x0, s.w);
+  const std::vector<msk::ConstraintSet*> sets = {s.internal.get()};
+  solver.step(sets);  // colouring and caches
+  for (auto _ : state) benchmark::DoNotOptimize(solver.step(sets));
+  if (!solver.positions().allFinite()) state.SkipWithError("the run is not finite");
+  finish(state, static_cast<int64_t>(o.iterations) * n, n);
+  state.counters["threads"] = o.threads;
+}
+BENCHMARK_CAPTURE(BM_SolverInternalThreads, gauss_seidel, msk::Scheme::GaussSeidel)
+    ->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SolverInternalThreads, coloured, msk::Scheme::ColouredGaussSeidel)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SolverInternalThreads, jacobi, msk::Scheme::Jacobi)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_SolverInternalThreads, xpbd, msk::Scheme::Xpbd)
+    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, on a packed copy of the
 // particles, sixteen rows at a time with AVX-512 or eight with AVX2 (the widest the processor has, chosen at run time),
 // eight with AVX2 (`_avx2`) or two with SSE2 (`_sse2`), no virtual call. Every sweep includes filling the packed copy
@@ -172,7 +189,7 @@ BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
 enum class BatchMode { Jacobi, JacobiCounted, Coloured };
 void BM_BatchInternal(benchmark::State& state, BatchMode mode, msk::BatchLanes lanes,
                       msk::BatchOrder order = msk::BatchOrder::Locality) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::SimplexInternalBatch batch(s, 0.5, order);
   batch.useLanes(lanes);
@@ -230,7 +247,7 @@ BENCHMARK_CAPTURE(BM_BatchInternal, coloured_sse2, BatchMode::Coloured, msk::Bat
 
 // Image target constraints (one per vertex, weight 1).
 void BM_ImageTargets(benchmark::State& state) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::TargetConstraints c(0.25);
   c.setTargets(perturbed(s.positions * 1.02, 0.5, 2), Eigen::VectorXd::Ones(n));
@@ -243,7 +260,7 @@ BENCHMARK(BM_ImageTargets)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kM
 
 // Global shape prior (similarity fit + pull), items = vertices.
 void BM_ShapePrior(benchmark::State& state) {
-  const msk::SimplexMesh s = simplexSphere(static_cast<int>(state.range(0)), 50.0);
+  const msk::SimplexMesh s = scaledSphere(static_cast<int>(state.range(0)), 50.0);
   const int n = s.vertexCount();
   msk::ShapeMatchingConstraint c(s.positions, msk::PriorTransform::Similarity, 0.1);
   msk::Points p = perturbed(s.positions * 1.05, 1.0, 3);
@@ -264,7 +281,7 @@ struct CollisionPair {
 };
 
 CollisionPair collisionPair(int s, double r) {
-  const msk::SimplexMesh a = simplexSphere(s, r);
+  const msk::SimplexMesh a = scaledSphere(s, r);
   CollisionPair c;
   c.na = a.vertexCount();
   c.edge = meanSimplexEdge(a);

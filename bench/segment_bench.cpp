@@ -12,6 +12,7 @@
 #include "msk/segmentation/metrics.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segmenter.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
@@ -19,7 +20,7 @@ const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-s
 
 // One Gauss–Seidel sweep of the 2-simplex shape-memory constraint over every vertex.
 void BM_SimplexInternalSweep(benchmark::State& state) {
-  const msk::SimplexMesh s = msk::simplexFromTriangles(msk::makeIcosphere(30.0, static_cast<int>(state.range(0))));
+  const msk::SimplexMesh s = msk::test::simplexSphere(30.0, static_cast<int>(state.range(0)));
   msk::SimplexInternalConstraints c(s, 0.5);
   msk::Points p = s.positions * 1.01;
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());

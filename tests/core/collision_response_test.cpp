@@ -7,7 +7,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <memory>
 #include <random>
@@ -187,8 +186,6 @@ TEST(CollisionResponse, TwoSpheresPushedIntoEachOtherEndApartUnderEveryMode) {
     const double end = depth(solver.positions());
     const double centres = (solver.positions().bottomRows(s.nb).colwise().mean() -
                             solver.positions().topRows(s.na).colwise().mean()).norm();
-    std::printf("%-34s deepest %.3f mm, at the end %.4f mm, centres %.2f mm apart\n", label(r).c_str(), deepest, end,
-                centres);
     EXPECT_LE(end, 0.1) << label(r);
     EXPECT_GT(centres, 18.0) << label(r);  // they did not pass through each other
   }
@@ -319,10 +316,6 @@ TEST(CollisionResponse, GlobalSolveAgreesWithManySequentialSweeps) {
     double restS = 0, restG = 0;
     for (const auto& r : leftS) restS = std::max(restS, r.change.norm());
     for (const auto& r : leftG) restG = std::max(restG, r.change.norm());
-    std::printf("%s: global %d rows, %d CG iterations, residual %.1e, %d let go; left to correct: global %.1e mm, "
-                "sequential %.1e mm; max |global - sequential| %.2e mm\n",
-                msk::collisionTargetName(target), rep.rows, rep.iterations, rep.residual, rep.dropped, restG, restS,
-                (pg - ps).cwiseAbs().maxCoeff());
     EXPECT_LT(restG, 1e-6);
     EXPECT_LT(momentumError(moved, pg, w), 1e-9);
     if (target == CollisionTarget::Reference) {
@@ -337,7 +330,6 @@ TEST(CollisionResponse, GlobalSolveAgreesWithManySequentialSweeps) {
       probeS.detect(ps, false);
       double most = 0;
       for (int v = 0; v < 5; ++v) most = std::max(most, -probeS.referenceDistance(v));
-      std::printf("spring: sequential leaves a vertex %.3f mm from the partner (gap %.1f)\n", most, gap);
       EXPECT_GE(most, gap - 1e-6);
     }
   }

@@ -1,8 +1,7 @@
-// Stability at the extremes (issue 5): the position-based solver and the constraint kernels under extreme stiffness,
+// Stability at the extremes: the position-based solver and the constraint kernels under extreme stiffness,
 // time steps, masses, units, degenerate elements and injected NaNs, and the momentum they carry.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <memory>
 #include <random>
@@ -24,25 +23,15 @@
 #include "msk/core/volume_simplex.h"
 #include "msk/core/constraint_set.h"
 #include "msk/core/transform_fit.h"
+#include "msk/test/shapes.h"
+#include "msk/test/solver_scenarios.h"
 
 namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-/// Simplex sphere of radius r (mm) about `center`, dual of an icosphere subdivided `s` times (20·4^s vertices).
-msk::SimplexMesh sphere(double r, int s = 2, const Vec3& center = Vec3::Zero()) {
-  return msk::simplexFromTriangles(msk::makeIcosphere(r, s, center));
-}
-
-/// `p` with a deterministic uniform perturbation of ±amplitude per coordinate.
-msk::Points perturbed(const msk::Points& p, double amplitude, unsigned seed = 1) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-amplitude, amplitude);
-  msk::Points q = p;
-  for (int i = 0; i < q.rows(); ++i)
-    for (int c = 0; c < 3; ++c) q(i, c) += u(rng);
-  return q;
-}
+using msk::test::perturbed;
+using msk::test::simplexSphere;
 
 /// Largest |a − b| over all coordinates.
 double maxDiff(const msk::Points& a, const msk::Points& b) { return (a - b).cwiseAbs().maxCoeff(); }
@@ -57,7 +46,7 @@ struct SphereSystem {
 
 SphereSystem sphereSystem(double r, double gammaInternal, double gammaTarget, int s = 2) {
   SphereSystem sys;
-  sys.mesh = sphere(r, s);
+  sys.mesh = simplexSphere(r, s);
   sys.internal = std::make_unique<msk::SimplexInternalConstraints>(sys.mesh, gammaInternal);
   sys.targets = std::make_unique<msk::TargetConstraints>(gammaTarget);
   sys.targets->setTargets(sys.mesh.positions * 1.1, Eigen::VectorXd::Ones(sys.mesh.vertexCount()));
@@ -107,7 +96,7 @@ class NaNInjector : public msk::ConstraintSet {
 // γ = 0, 1e-12 and 1 are accepted by every constraint family and keep the run finite and bounded; γ = 1e12, negative
 // or NaN values are refused with a ParameterError naming the parameter.
 TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
-  const msk::SimplexMesh s = sphere(10.0);
+  const msk::SimplexMesh s = simplexSphere(10.0);
   const msk::RadialAttachment att = msk::attachToAxis(s.positions, (msk::Points(2, 3) << 0, 0, -10, 0, 0, 10).finished());
   const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 1.0));
   for (const double g : {0.0, 1e-12, 1.0}) {
@@ -164,7 +153,6 @@ TEST(ExtremeTimeStep, TrajectoryDoesNotDependOnDt) {
       worst = std::max(worst, maxDiff(solver.positions(), reference));
     }
   }
-  std::printf("[ dt ] 1e-6..10 s: largest difference from dt = 1 after 40 steps %.3g mm\n", worst);
   EXPECT_LT(worst, 1e-8);
   for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
     expectParameterError([&] { msk::SolverOptions o; o.dt = dt; msk::Solver p(o); }, "dt");
@@ -187,7 +175,6 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
     run(solver, sys.sets(), steps);
     uniform[k++] = solver.positions();
   }
-  std::printf("[ masses ] uniform mass 1e-9 vs 1e9: largest difference %.3g mm\n", maxDiff(uniform[0], uniform[1]));
   EXPECT_LT(maxDiff(uniform[0], uniform[1]), 1e-8);
 
   // Log-uniform masses over 1e-9..1e9, every tenth particle fixed.
@@ -203,11 +190,9 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
   msk::Solver solver(msk::SolverOptions{});
   const msk::Points start = perturbed(sys.mesh.positions, 0.5);
   solver.prepare(start, w);
-  const double largest = run(solver, sets, 2 * steps);
+  run(solver, sets, 2 * steps);
   const double last = solver.step(sets);
   const Eigen::VectorXd radius = solver.positions().rowwise().norm();
-  std::printf("[ masses ] 1e-9..1e9 mixed: largest step %.3g mm, last %.3g mm, radius %.2f..%.2f mm\n", largest, last,
-              radius.minCoeff(), radius.maxCoeff());
   EXPECT_LT(last, 1e-6);  // settled (largest single step: MixedMassesKeepStepsBounded)
   EXPECT_GT(radius.minCoeff(), 5.0);
   EXPECT_LT(radius.maxCoeff(), 15.0);
@@ -215,7 +200,7 @@ TEST(ExtremeMasses, WideMassRangeAndFixedParticles) {
 
   // Fixed particles under collisions, radial and 3-simplex constraints too.
   {
-    const msk::SimplexMesh a = sphere(10.0, 2), b = sphere(10.0, 2, Vec3(17, 0, 0));
+    const msk::SimplexMesh a = simplexSphere(10.0, 2), b = simplexSphere(10.0, 2, Vec3(17, 0, 0));
     const int na = a.vertexCount();
     msk::Points p(2 * na, 3);
     p << a.positions, b.positions;
@@ -255,7 +240,7 @@ TEST(ExtremeUnits, MetresAndMillimetresGiveTheSameRun) {
   msk::Points result[2];
   int k = 0;
   for (const double unit : {1.0, 1e-3}) {  // mm, then m
-    const msk::SimplexMesh a = sphere(10.0 * unit, 2), b = sphere(10.0 * unit, 2, Vec3(17 * unit, 0, 0));
+    const msk::SimplexMesh a = simplexSphere(10.0 * unit, 2), b = simplexSphere(10.0 * unit, 2, Vec3(17 * unit, 0, 0));
     const int na = a.vertexCount();
     msk::Points p(2 * na, 3);
     p << a.positions, b.positions;
@@ -279,7 +264,6 @@ TEST(ExtremeUnits, MetresAndMillimetresGiveTheSameRun) {
     result[k++] = solver.positions() / unit;
   }
   const double diff = maxDiff(result[0], result[1]);
-  std::printf("[ units ] mm vs m run: largest difference %.3g mm\n", diff);
   EXPECT_LT(diff, 1e-6);
 }
 
@@ -350,7 +334,7 @@ TEST(ExtremeElements, KernelsRefuseDegenerateInputOrStayFinite) {
 // A mesh with collapsed, coincident and inverted neighbourhoods: the sets skip what they cannot project and the solver
 // stays finite; a sphere turned inside out (mirrored) evolves without NaN.
 TEST(ExtremeElements, SetsSkipDegenerateNeighbourhoodsAndStayFinite) {
-  const msk::SimplexMesh s = sphere(10.0);
+  const msk::SimplexMesh s = simplexSphere(10.0);
   const int n = s.vertexCount();
   msk::SimplexInternalConstraints c(s, 1.0);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(n);
@@ -378,7 +362,6 @@ TEST(ExtremeElements, SetsSkipDegenerateNeighbourhoodsAndStayFinite) {
   mirrored.col(0) *= -1.0;
   solver.prepare(mirrored, w);
   const double largestInverted = run(solver, {&c}, 30);
-  std::printf("[ elements ] degenerate run largest step %.3g mm, inverted %.3g mm\n", largest, largestInverted);
   EXPECT_LT(largestInverted, 25.0);
   // 3-simplex model with an inverted tet (one interior tet vertex pushed through its neighbours).
   const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(3, 1.0));
@@ -434,7 +417,6 @@ TEST(ExtremeNaN, InjectedNaNIsDetectedAndNeverSpreads) {
     ADD_FAILURE() << "step() accepted a NaN position";
   } catch (const msk::Error& e) {
     const std::string what = e.what();
-    std::printf("[ nan ] step() threw: %s\n", what.c_str());
     EXPECT_NE(what.find("non-finite"), std::string::npos) << what;
   }
   EXPECT_TRUE(solver.positions().allFinite());
@@ -460,7 +442,7 @@ TEST(ExtremeNaN, InjectedNaNIsDetectedAndNeverSpreads) {
 TEST(ExtremeNaN, GlobalPriorDoesNotSpreadANaN) {
   // One non-finite position takes no part in the fit and is left alone: it does not spread to the other particles
   // (the solver's step then reports it).
-  const msk::SimplexMesh s = sphere(10.0);
+  const msk::SimplexMesh s = simplexSphere(10.0);
   msk::Points p = s.positions * 1.05;
   p(5, 2) = std::numeric_limits<double>::quiet_NaN();
   msk::ShapeMatchingConstraint prior(s.positions, msk::PriorTransform::Rigid, 0.5);
@@ -486,22 +468,11 @@ void linearMomentum(const msk::Points& before, const msk::Points& after, const E
   }
 }
 
-/// Angular momentum Σ m x × v about the origin and its scale Σ m |x| |v|.
-void angularMomentum(const msk::Points& x, const msk::Points& v, const Eigen::VectorXd& w, Vec3& l, double& scale) {
-  l.setZero();
-  scale = 0;
-  for (int i = 0; i < w.size(); ++i) {
-    if (w[i] <= 0) continue;
-    const Vec3 xi = x.row(i).transpose(), vi = v.row(i).transpose();
-    l += xi.cross(vi) / w[i];
-    scale += xi.norm() * vi.norm() / w[i];
-  }
-}
 }  // namespace
 
 // Internal and collision corrections conserve linear momentum to 1e-9 (relative to Σ m|Δx|), with unequal masses.
 TEST(ExtremeMomentum, InternalAndCollisionCorrectionsConserveLinearMomentum) {
-  const msk::SimplexMesh a = sphere(10.0, 2), b = sphere(10.0, 2, Vec3(16, 1, 0.5));
+  const msk::SimplexMesh a = simplexSphere(10.0, 2), b = simplexSphere(10.0, 2, Vec3(16, 1, 0.5));
   const int na = a.vertexCount();
   msk::Points p(2 * na, 3);
   p << perturbed(a.positions, 0.5, 1), perturbed(b.positions, 0.5, 2);
@@ -524,50 +495,7 @@ TEST(ExtremeMomentum, InternalAndCollisionCorrectionsConserveLinearMomentum) {
     double scale = 0;
     linearMomentum(before, p, w, sum, scale);
     ASSERT_GT(scale, 0) << s->name();
-    std::printf("[ momentum ] %-16s linear |Σ mΔx| / Σ m|Δx| = %.2e\n", s->name().c_str(), sum.norm() / scale);
     EXPECT_LT(sum.norm(), 1e-9 * scale) << s->name();
-  }
-}
-
-/// Largest per-step change of angular momentum Σ m x × v (relative to Σ m |x| |v|) and of linear momentum (relative to
-/// Σ m |v|) of a PBD run of two overlapping perturbed spheres (unit masses, no damping, no drag, no image targets)
-/// under their internal sets and, if `collide`, the collision sets of both directions.
-void momentumDrift(bool collide, double& angular, double& linear) {
-  const msk::SimplexMesh a = sphere(10.0, 2), b = sphere(10.0, 2, Vec3(18.5, 0, 0));
-  const int na = a.vertexCount();
-  msk::Points p(2 * na, 3);
-  p << perturbed(a.positions, 0.3, 3), perturbed(b.positions, 0.3, 4);
-  const Vec3 center = p.colwise().mean().transpose();
-  p.rowwise() -= center.transpose();
-  const Eigen::VectorXd w = Eigen::VectorXd::Ones(2 * na);
-  msk::SimplexInternalConstraints ia(a, 0.5), ib(b, 0.5);
-  ib.setFirstParticle(na);
-  msk::CollisionConstraints ab(0, na, msk::Triangles(msk::simplexFanTriangles(b).array() + na), 0.5, 1.0, 0.0),
-      ba(na, na, msk::simplexFanTriangles(a), 0.5, 1.0, 0.0);
-  std::vector<msk::ConstraintSet*> sets = {&ia, &ib};
-  if (collide) sets.insert(sets.end(), {&ab, &ba});
-  msk::SolverOptions o;
-  o.damping = 0;
-  o.drag = 0;
-  msk::Solver solver(o);
-  solver.prepare(p, w);
-  angular = linear = 0;
-  Vec3 lPrev = Vec3::Zero();
-  for (int step = 0; step < 20; ++step) {
-    if (collide) {
-      ab.detect(solver.positions(), false);
-      ba.detect(solver.positions(), false);
-    }
-    solver.step(sets);
-    ASSERT_TRUE(solver.positions().allFinite());
-    Vec3 l;
-    double scale = 0;
-    angularMomentum(solver.positions(), solver.velocities(), w, l, scale);
-    const Vec3 lin = solver.velocities().colwise().sum().transpose();
-    const double linScale = solver.velocities().rowwise().norm().sum();
-    if (scale > 0) angular = std::max(angular, (l - lPrev).norm() / scale);
-    if (linScale > 0) linear = std::max(linear, lin.norm() / linScale);
-    lPrev = l;
   }
 }
 
@@ -575,19 +503,15 @@ void momentumDrift(bool collide, double& angular, double& linear) {
 // correction carries none at the positions it is applied to, but a sweep applies them one after the other at moving
 // positions (second order in the corrections), about 4% of them take the λ = ε̃ fallback (linear momentum only), and
 // the contact corrections are not central. Budget per step, relative to Σ m|x||v|: 5e-3 (measured 2e-4 for the
-// internal sets alone and with collisions at γ = 0.5 on this case, printed). Linear momentum: 1e-9 relative.
+// internal sets alone and with collisions at γ = 0.5 on this case: BM_AngularMomentumDrift in
+// bench/stability_bench.cpp). Linear momentum: 1e-9 relative.
 TEST(ExtremeMomentum, AngularMomentumDriftPerStepWithinBudget) {
-  double angular = 0, linear = 0;
-  momentumDrift(false, angular, linear);
-  std::printf("[ momentum ] solver, internal sets: angular drift per step %.2e, linear %.2e (relative)\n", angular,
-              linear);
-  EXPECT_LT(angular, 5e-3);
-  EXPECT_LT(linear, 1e-9);
-  momentumDrift(true, angular, linear);
-  std::printf("[ momentum ] solver, internal + collision sets: angular drift per step %.2e, linear %.2e (relative)\n",
-              angular, linear);
-  EXPECT_LT(angular, 5e-3);
-  EXPECT_LT(linear, 1e-9);
+  for (const bool collide : {false, true}) {
+    const msk::test::MomentumDrift d = msk::test::momentumDrift(collide);
+    ASSERT_TRUE(d.finite) << (collide ? "with collisions" : "internal sets");
+    EXPECT_LT(d.angular, 5e-3) << (collide ? "with collisions" : "internal sets");
+    EXPECT_LT(d.linear, 1e-9) << (collide ? "with collisions" : "internal sets");
+  }
 }
 
 // ------------------------------------------------------------------------------------------------ known instabilities
@@ -596,7 +520,7 @@ namespace {
 /// Largest distance from the origin after `sweeps` projections of the internal set alone (no targets, no solver) on a
 /// sphere of radius 10 perturbed by ±amplitude; the rest shape is the sphere itself, so it should stay near 10.
 double internalAloneRadius(msk::InternalMode mode, double gamma, double amplitude, int sweeps) {
-  const msk::SimplexMesh s = sphere(10.0, 2);
+  const msk::SimplexMesh s = simplexSphere(10.0, 2);
   msk::SimplexInternalConstraints c(s, gamma, mode);
   msk::Points p = perturbed(s.positions, amplitude, 9);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
@@ -613,21 +537,6 @@ TEST(ExtremeStability, InternalShapeMemoryAloneSettles) {
   EXPECT_LT(internalAloneRadius(msk::InternalMode::ShapeMemory, 0.5, 0.05, 2000), 10.5);
 }
 
-/// Smallest and largest distance from the origin after `steps` steps of `scheme` with the smoothing set alone on a
-/// sphere of radius 10 perturbed by ±amplitude (rows: the coloured, Jacobi, XPBD and force-based schemes use them).
-std::pair<double, double> smoothingSolverRadii(msk::Scheme scheme, double gamma, double amplitude, int steps) {
-  const msk::SimplexMesh s = sphere(10.0, 2);
-  msk::SimplexInternalConstraints c(s, gamma, msk::InternalMode::Smoothing);
-  msk::SolverOptions o;
-  o.scheme = scheme;
-  if (scheme == msk::Scheme::Explicit) o.substeps = 4;
-  msk::Solver solver(o);
-  solver.prepare(perturbed(s.positions, amplitude, 9), Eigen::VectorXd::Ones(s.vertexCount()));
-  for (int i = 0; i < steps; ++i) solver.step({&c});
-  const Eigen::VectorXd r = solver.positions().rowwise().norm();
-  return {r.minCoeff(), r.maxCoeff()};
-}
-
 // The smoothing mode (ε̃ = 1/3, neighbourhood-mean heights) keeps a resting or slightly perturbed sphere where it is,
 // at full and partial stiffness, projected alone for 2000 sweeps. (Before its normal step was taken a quarter of the
 // way and its reactions set to ε̃, a resting 10 mm sphere reached 83 mm after 30 sweeps at γ = 1, and 18 mm after 2000
@@ -636,24 +545,17 @@ TEST(ExtremeStability, InternalSmoothingAloneStaysBounded) {
   for (double gamma : {1.0, 0.3})
     for (double amplitude : {0.0, 0.05}) {
       SCOPED_TRACE("gamma " + std::to_string(gamma) + ", perturbation " + std::to_string(amplitude));
-      const msk::SimplexMesh s = sphere(10.0, 2);
-      msk::SimplexInternalConstraints c(s, gamma, msk::InternalMode::Smoothing);
-      msk::Points p = perturbed(s.positions, amplitude, 9);
-      const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
-      for (int i = 0; i < 2000; ++i) c.project(p, w);
-      ASSERT_TRUE(p.allFinite());
-      const Eigen::VectorXd r = p.rowwise().norm();
-      std::printf("[ smoothing ] gamma %.1f, perturbation %.2f: radius %.3f..%.3f after 2000 sweeps\n", gamma,
-                  amplitude, r.minCoeff(), r.maxCoeff());
-      EXPECT_LT(r.maxCoeff(), 10.5);
-      EXPECT_GT(r.minCoeff(), 9.5);
-      EXPECT_EQ(c.skipped(), 0);
+      int skipped = -1;
+      const auto [lo, hi] = msk::test::smoothingSweepRadii(gamma, amplitude, 2000, &skipped);
+      ASSERT_TRUE(std::isfinite(hi));
+      EXPECT_LT(hi, 10.5);
+      EXPECT_GT(lo, 9.5);
+      EXPECT_EQ(skipped, 0);
     }
   // The same through the rows, under every scheme.
   for (msk::Scheme scheme : {msk::Scheme::GaussSeidel, msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi,
                              msk::Scheme::Xpbd, msk::Scheme::Explicit, msk::Scheme::Implicit}) {
-    const auto [lo, hi] = smoothingSolverRadii(scheme, 1.0, 0.05, 300);
-    std::printf("[ smoothing ] %s, gamma 1: radius %.3f..%.3f after 300 steps\n", msk::schemeName(scheme).c_str(), lo, hi);
+    const auto [lo, hi] = msk::test::smoothingSolverRadii(scheme, 1.0, 0.05, 300);
     EXPECT_LT(hi, 10.5) << msk::schemeName(scheme);
     EXPECT_GT(lo, 9.5) << msk::schemeName(scheme);
   }

@@ -1,7 +1,6 @@
 #include "msk/core/medial_axis.h"
 
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <random>
 
@@ -9,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
@@ -41,10 +41,7 @@ double distanceToLine(const Vec3& p, const Vec3& c, const Vec3& d) {
   return (r - r.dot(d) * d).norm();
 }
 
-Vec3 randomVec(std::mt19937& rng, double s) {
-  std::uniform_real_distribution<double> u(-s, s);
-  return {u(rng), u(rng), u(rng)};
-}
+using msk::test::uniformVector;
 
 }  // namespace
 
@@ -81,7 +78,6 @@ TEST(MedialAxis, EllipsoidAxisLiesOnTrueAxis) {
     prev = s;
   }
   RecordProperty("axis_error_mm", std::to_string(worst));
-  std::printf("[          ] max axis-vertex distance to the true axis: %.3g mm\n", worst);
   EXPECT_LT(worst, 0.5);
 
   msk::MedialAxisOptions opts;
@@ -156,9 +152,9 @@ TEST(RadialKernel, ConservesLinearMomentum) {
   std::uniform_real_distribution<double> um(0.2, 5.0), ut(0.0, 1.0), ur(1.0, 20.0);
   double worst = 0;
   for (int c = 0; c < 500; ++c) {
-    const Vec3 q[2] = {randomVec(rng, 30.0), randomVec(rng, 30.0)};
+    const Vec3 q[2] = {uniformVector(rng, 30.0), uniformVector(rng, 30.0)};
     const double tt = ut(rng), weights[2] = {1.0 - tt, tt};
-    const Vec3 p = weights[0] * q[0] + weights[1] * q[1] + randomVec(rng, 15.0);
+    const Vec3 p = weights[0] * q[0] + weights[1] * q[1] + uniformVector(rng, 15.0);
     const double r = ur(rng), gamma = ut(rng);
     const double w = 1.0 / um(rng), wq[2] = {1.0 / um(rng), 1.0 / um(rng)};
     Vec3 dp, dq[2];
@@ -173,7 +169,6 @@ TEST(RadialKernel, ConservesLinearMomentum) {
     const Vec3 pcNew = weights[0] * (q[0] + dq[0]) + weights[1] * (q[1] + dq[1]) - (p + dp);
     EXPECT_LT((pcNew - pc - gamma * cvec).norm(), 1e-9 * (1.0 + pc.norm()));
   }
-  std::printf("[          ] worst relative linear-momentum residual: %.3g\n", worst);
   EXPECT_LT(worst, 1e-9);
 }
 
@@ -183,9 +178,9 @@ TEST(RadialKernel, FullStiffnessWithFixedAxisReachesReferenceRadius) {
   std::uniform_real_distribution<double> ut(0.0, 1.0), ur(0.5, 20.0), um(0.2, 5.0);
   double worst = 0;
   for (int c = 0; c < 500; ++c) {
-    const Vec3 q[2] = {randomVec(rng, 30.0), randomVec(rng, 30.0)};
+    const Vec3 q[2] = {uniformVector(rng, 30.0), uniformVector(rng, 30.0)};
     const double tt = ut(rng), weights[2] = {1.0 - tt, tt}, wq[2] = {0.0, 0.0};
-    const Vec3 p = weights[0] * q[0] + weights[1] * q[1] + randomVec(rng, 15.0);
+    const Vec3 p = weights[0] * q[0] + weights[1] * q[1] + uniformVector(rng, 15.0);
     const double r = ur(rng);
     Vec3 dp, dq[2];
     ASSERT_TRUE(msk::radialCorrection(p, q, weights, r, 1.0 / um(rng), wq, 1.0, dp, dq));
@@ -194,7 +189,6 @@ TEST(RadialKernel, FullStiffnessWithFixedAxisReachesReferenceRadius) {
     const Vec3 qbar = weights[0] * q[0] + weights[1] * q[1];
     worst = std::max(worst, std::fabs((qbar - (p + dp)).norm() - r));
   }
-  std::printf("[          ] worst | |Q̄ − P| − r̃ | after one projection: %.3g mm\n", worst);
   EXPECT_LT(worst, 1e-9);
 }
 
@@ -255,8 +249,6 @@ TEST(RadialConstraints, SqueezedTubeRecoversRadius) {
   }
   for (int j = 0; j < na; ++j) axisDrift = std::max(axisDrift, (p.row(nv + j) - ax.curve.positions.row(j)).norm());
   const double ratio = now / orig;
-  std::printf("[          ] squeezed 0.7 -> recovered mid-tube radius %.2f%% of the original, axis drift %.3g mm\n",
-              100.0 * ratio, axisDrift);
   EXPECT_NEAR(ratio, 1.0, 0.03);
   EXPECT_LT(axisDrift, 0.5);
 
@@ -267,7 +259,6 @@ TEST(RadialConstraints, SqueezedTubeRecoversRadius) {
                       att.weights(v, 1) * p.row(nv + att.axisIndex(v, 1)).transpose();
     worst = std::max(worst, std::fabs((qbar - p.row(v).transpose()).norm() - att.radius[v]) / att.radius[v]);
   }
-  std::printf("[          ] worst relative radial residual after 20 sweeps: %.3g\n", worst);
   EXPECT_LT(worst, 0.01);
 }
 

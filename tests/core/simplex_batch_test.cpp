@@ -16,6 +16,7 @@
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/constraint_row.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
@@ -37,7 +38,7 @@ struct Problem {
 Problem makeProblem(int subdivisions, double perturbation, double massDecades, int offset, unsigned seed,
                     bool defects = true) {
   Problem pr;
-  pr.reference = msk::simplexFromTriangles(msk::makeIcosphere(50.0, subdivisions));
+  pr.reference = msk::test::simplexSphere(50.0, subdivisions);
   const int n = pr.reference.vertexCount();
   pr.offset = offset;
   std::mt19937 rng(seed);
@@ -247,7 +248,7 @@ TEST(SimplexBatch, EveryLaneWidthGivesBitwiseTheSameSweeps) {
 }
 
 TEST(SimplexBatch, ColoursShareNoParticleAndCoverEveryRowOnce) {
-  const msk::SimplexMesh m = msk::simplexFromTriangles(msk::makeIcosphere(10.0, 2));
+  const msk::SimplexMesh m = msk::test::simplexSphere(10.0);
   const msk::SimplexInternalBatch batch(m, 1.0);
   ASSERT_EQ(batch.colourBegin(batch.colours()), m.vertexCount());
   std::vector<int> seen(static_cast<size_t>(m.vertexCount()), 0);
@@ -375,7 +376,7 @@ TEST(SimplexBatch, JacobiConservesLinearMomentum) {
 }
 
 TEST(SimplexBatch, RefusesBadStiffnessAndSizes) {
-  const msk::SimplexMesh m = msk::simplexFromTriangles(msk::makeIcosphere(10.0, 1));
+  const msk::SimplexMesh m = msk::test::simplexSphere(10.0, 1);
   EXPECT_THROW(msk::SimplexInternalBatch(m, 1.5), msk::ParameterError);
   EXPECT_THROW(msk::SimplexInternalBatch(m, -0.1), msk::ParameterError);
   msk::SimplexInternalBatch batch(m, 1.0);

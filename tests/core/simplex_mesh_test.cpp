@@ -1,22 +1,17 @@
 #include "msk/core/simplex_mesh.h"
 
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <random>
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
 using Vec3 = Eigen::Vector3d;
-
-double secondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 /// Ellipsoid 40×20×15 mm (semi-axes 20, 10, 7.5) with a sinusoidal bump around its long axis.
 msk::TriangleMesh bumpyEllipsoid(int subdivisions) {
@@ -64,6 +59,7 @@ msk::Points faceCentroids(const msk::SimplexMesh& s) {
 
 /// Round trip triangles → simplex → triangles; returns corrected and plain errors relative to the mean edge length.
 void roundTrip(const msk::TriangleMesh& m, const char* name, double& corrected, double& plain) {
+  SCOPED_TRACE(name);
   const double edge = msk::meanEdgeLength(m);
   const msk::SimplexMesh s = msk::simplexFromTriangles(m);
   const msk::TriangleMesh back = msk::trianglesFromSimplex(s);
@@ -72,8 +68,6 @@ void roundTrip(const msk::TriangleMesh& m, const char* name, double& corrected, 
   EXPECT_EQ(msk::closedMeshProblem(back), "");
   corrected = maxDeviation(back.vertices, m.vertices) / edge;
   plain = maxDeviation(faceCentroids(s), m.vertices) / edge;
-  std::printf("[ round trip ] %s (%d triangles): max deviation / mean edge = %.2e corrected, %.2e plain\n", name,
-              m.faceCount(), corrected, plain);
 }
 
 }  // namespace
@@ -240,7 +234,6 @@ TEST(SimplexMesh, RoundTripDoesNotShrinkTheVolume) {
   const double v0 = msk::enclosedVolume(m), v1 = msk::enclosedVolume(plain);
   plain.vertices = faceCentroids(s);
   const double v2 = msk::enclosedVolume(plain);
-  std::printf("[ round trip ] volume %.2f mm3 -> corrected %.2f, plain %.2f\n", v0, v1, v2);
   EXPECT_NEAR(v1, v0, 1e-3 * v0);
   EXPECT_LT(v2, v0 * 0.99);
 }
@@ -252,18 +245,11 @@ TEST(SimplexMesh, RoundTripRestoresTorus) {
   EXPECT_LT(corrected, plain);
 }
 
-TEST(SimplexMesh, ConversionTiming) {
-  // Prints wall times (tests never assert on them): ~10k and ~20k simplex vertices.
+// The round trip at about 10⁴ and 2·10⁴ simplex vertices (BM_SimplexConversion in bench/mesh_bench.cpp times it on
+// spheres of those sizes).
+TEST(SimplexMesh, RoundTripAtTenAndTwentyThousandVertices) {
   for (const msk::TriangleMesh& m : {torus(72, 70), bumpyEllipsoid(5)}) {
-    auto t0 = std::chrono::steady_clock::now();
-    const msk::SimplexMesh s = msk::simplexFromTriangles(m);
-    const double tFrom = secondsSince(t0);
-    t0 = std::chrono::steady_clock::now();
-    const msk::TriangleMesh back = msk::trianglesFromSimplex(s);
-    const double tBack = secondsSince(t0);
-    std::printf(
-        "[ timing ] %d simplex vertices, %d faces: simplexFromTriangles %.1f ms, trianglesFromSimplex %.1f ms\n",
-        s.vertexCount(), s.faceCount(), 1e3 * tFrom, 1e3 * tBack);
+    const msk::TriangleMesh back = msk::trianglesFromSimplex(msk::simplexFromTriangles(m));
     EXPECT_LE(maxDeviation(back.vertices, m.vertices) / msk::meanEdgeLength(m), 0.02);
   }
 }
@@ -366,27 +352,16 @@ TEST(SurfaceTransfer, LinearFunctionCarriesAcrossResolutions) {
     worst = std::max(worst, std::fabs(g[i] - (finer.vertices.row(i).dot(a) + b)));  // vs f on the finer sphere
   }
   const double edge = msk::meanEdgeLength(coarse);
-  std::printf("[ transfer ] linear f: max error %.4f = %.4f |a| edge (exact at bound points to %.1e)\n", worst,
-              worst / (a.norm() * edge), worstExact);
   EXPECT_LT(worstExact, 1e-10);
   EXPECT_LT(worst, 0.05 * a.norm() * edge);
   EXPECT_THROW(transfer.apply(Eigen::MatrixXd::Zero(3, 1)), msk::Error);
   EXPECT_THROW(msk::SurfaceTransfer(msk::TriangleMesh(), targets), msk::Error);
 }
 
-TEST(SurfaceTransfer, TimingFor50kPoints) {
-  const msk::TriangleMesh source = msk::makeIcosphere(20.0, 4);  // 5120 triangles
-  std::mt19937 rng(5);
-  std::normal_distribution<double> g(0, 1);
-  std::uniform_real_distribution<double> u(0.9, 1.1);
-  msk::Points targets(50000, 3);
-  for (int i = 0; i < targets.rows(); ++i) {
-    const Vec3 d = Vec3(g(rng), g(rng), g(rng)).normalized();
-    targets.row(i) = (20.0 * u(rng) * d).transpose();
-  }
-  const auto t0 = std::chrono::steady_clock::now();
-  const msk::SurfaceTransfer transfer(source, targets);
-  const double t = secondsSince(t0);
-  std::printf("[ timing ] SurfaceTransfer: 50000 points on %d triangles in %.1f ms\n", source.faceCount(), 1e3 * t);
+// 50 000 points within ±10 % of a sphere's radius bind within 2.5 mm of its 5120 triangles (BM_SurfaceTransfer in
+// bench/mesh_bench.cpp times it).
+TEST(SurfaceTransfer, FiftyThousandPointsNearASphereBindWithinReach) {
+  const msk::TriangleMesh source = msk::makeIcosphere(20.0, 4);
+  const msk::SurfaceTransfer transfer(source, msk::test::pointsNearSphere(50000, 20.0, 0.1, 5));
   EXPECT_LT(transfer.distances().maxCoeff(), 2.5);
 }

@@ -47,8 +47,6 @@ TEST(TetSplit, EveryTetGetsAnInteriorNode) {
     // The Steiner nodes are inside, off the boundary.
     const std::vector<char> on = msk::boundaryNodeMask(s);
     for (int i = cube.nodeCount(); i < s.nodeCount(); ++i) EXPECT_EQ(on[static_cast<size_t>(i)], 0);
-    std::printf("[measure] %d^3 cubes: %d tets, %d with all nodes on the boundary -> %d Steiner nodes, %d tets\n", n,
-                cube.tetCount(), before, added, s.tetCount());
   }
 }
 
@@ -106,5 +104,4 @@ TEST(TetSplit, BridgesLeaveNoEdgeOrFaceBetweenBoundaryNodesInside) {
   }
   EXPECT_EQ(bridges, 0);
   EXPECT_EQ(bridgeFaces, 0);
-  std::printf("[measure] 3^3 cubes, bridges split: %d Steiner nodes, %d tets\n", added, s.tetCount());
 }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -53,9 +52,6 @@ TEST(TetUntangle, ScrambledInteriorIsUntangled) {
       EXPECT_TRUE(m.nodes.row(i) == rest.nodes.row(i));
     }
   }
-  std::printf("[measure] 4^3 block scrambled: %d of %d tets inverted -> %d after %d sweeps, %d moves, smallest "
-              "relative volume %.3f\n",
-              before, m.tetCount(), rep.invertedAfter, rep.sweeps, rep.moves, rep.minRelativeVolumeAfter);
 }
 
 // A convex edge of a block folded into a valley (its nodes, ends aside, moved inwards by 0.7 of the cube edge along the
@@ -89,9 +85,6 @@ TEST(TetUntangle, FoldedRidgeNeedsInteriorNodes) {
     EXPECT_EQ(r.invertedAfter, inverted(m));
     EXPECT_NEAR(msk::totalVolume(m), folded, 1e-9);  // only interior nodes moved
   }
-  std::printf("[measure] folded edge, inverted before -> after untangling: plain %d -> %d, tets split %d -> %d, "
-              "bridges split %d -> %d\n",
-              before[0], after[0], before[1], after[1], before[2], after[2]);
   EXPECT_GT(before[0], 0);
   EXPECT_EQ(after[0], before[0]);  // no interior node in those tets
   EXPECT_GT(after[1], 0);
@@ -127,8 +120,6 @@ TEST(TetUntangle, ShapeSmoothingRaisesTheWorstQuality) {
   EXPECT_GT(msk::tetVolumes(m).minCoeff(), 0.0);
   EXPECT_TRUE(m.nodes.topRows(cube.nodeCount()) == cube.nodes);
   EXPECT_NEAR(msk::tetShapeQualities(cube).maxCoeff(), msk::tetShapeQualities(cube).minCoeff(), 1e-12);
-  std::printf("[measure] split block, shape quality: worst %.3f -> %.3f (unsplit cubes' tets %.3f)\n", before, after,
-              msk::tetShapeQualities(cube).minCoeff());
 }
 
 // untangleTetMesh(): without interior nodes in the folded tets (the plain folded block) the interior pass can do
@@ -156,9 +147,6 @@ TEST(TetUntangle, BoundaryPassStaysWithinReach) {
   for (int i = 0; i < m.nodeCount(); ++i)
     if (!interior[static_cast<size_t>(i)]) largest = std::max(largest, (m.nodes.row(i) - folded.row(i)).norm());
   EXPECT_NEAR(largest, r.largestBoundaryMoveMm, 1e-12);
-  std::printf("[measure] plain folded block: interior pass leaves %d inverted, boundary pass %d (%d surface nodes moved, "
-              "at most %.3f of reach 0.2)\n",
-              r.interior.invertedAfter, r.invertedAfter, r.boundaryNodesMoved, r.largestBoundaryMoveMm);
 
   const msk::TetMesh split = msk::splitBoundaryTets(plain, nullptr, msk::BoundarySplit::Bridges);
   msk::TetMesh b = split;
@@ -186,5 +174,4 @@ TEST(TetUntangle, WorstShapesImprovedInside) {
     }
   }
   EXPECT_THROW(msk::improveWorstTetShapes(m, std::nan("")), msk::ParameterError);
-  std::printf("[measure] scrambled block, worst shape quality %.3f -> %.3f\n", before, after);
 }

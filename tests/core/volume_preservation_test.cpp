@@ -10,15 +10,10 @@
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"
-
-namespace {
-
-msk::SimplexMesh sphere() { return msk::simplexFromTriangles(msk::makeIcosphere(10.0, 2)); }
-
-}  // namespace
+#include "msk/test/shapes.h"
 
 TEST(VolumePreservation, VolumeIsTheRecoveredSurfacesAndGradientMatchesFiniteDifferences) {
-  const msk::SimplexMesh s = sphere();
+  const msk::SimplexMesh s = msk::test::simplexSphere(10.0);
   const msk::VolumePreservation vp(s);
   EXPECT_NEAR(vp.reference(), msk::enclosedVolume(msk::trianglesFromSimplex(s)), 1e-6 * vp.reference());
   msk::Points p = s.positions;
@@ -36,7 +31,7 @@ TEST(VolumePreservation, VolumeIsTheRecoveredSurfacesAndGradientMatchesFiniteDif
 }
 
 TEST(VolumePreservation, HoldsASmallChangeAndFollowsALargeOne) {
-  const msk::SimplexMesh s = sphere();
+  const msk::SimplexMesh s = msk::test::simplexSphere(10.0);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
   msk::VolumePreservationOptions o;
   o.maxObserveProjections = 2;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
+#include "msk/test/shapes.h"
 
 namespace {
 
@@ -23,10 +24,7 @@ inline msk::Points volumeResiduals(const msk::VolumeSimplexMesh& model, const ms
   return r;
 }
 
-Eigen::Vector3d randomVec(std::mt19937& rng, double s = 1.0) {
-  std::uniform_real_distribution<double> u(-s, s);
-  return {u(rng), u(rng), u(rng)};
-}
+using msk::test::uniformVector;
 
 
 /// Inverse masses: tets free (1), ghosts fixed (0).
@@ -45,8 +43,8 @@ TEST(VolumeSimplexKernel, ConservesMomentumAndSatisfiesConstraint) {
   double worstLin = 0, worstAng = 0, worstC = 0;
   for (int t = 0; t < 500; ++t) {
     Eigen::Vector3d pi[4];
-    for (auto& q : pi) q = randomVec(rng, 20.0);
-    const Eigen::Vector3d p = randomVec(rng, 20.0) + Eigen::Vector3d(5, -3, 2);
+    for (auto& q : pi) q = uniformVector(rng, 20.0);
+    const Eigen::Vector3d p = uniformVector(rng, 20.0) + Eigen::Vector3d(5, -3, 2);
     double eps[4], sum = 0;
     for (double& e : eps) sum += (e = ue(rng));
     for (double& e : eps) e /= sum;
@@ -75,8 +73,6 @@ TEST(VolumeSimplexKernel, ConservesMomentumAndSatisfiesConstraint) {
   EXPECT_LT(worstLin, 1e-9);
   EXPECT_LT(worstAng, 1e-9);
   EXPECT_LT(worstC, 1e-9);
-  std::printf("[measure] kernel momentum residual: linear %.2e, angular %.2e (relative); C after step %.2e\n", worstLin,
-              worstAng, worstC);
 }
 
 TEST(VolumeSimplexKernel, RejectsDegenerateInput) {
@@ -163,8 +159,6 @@ TEST(VolumeSimplex, DualOfCubeIsValidAndReproducesRest) {
   const double side = n * h;
   EXPECT_LT((back.nodes - m.nodes).rowwise().norm().maxCoeff(), 1e-6 * side);
   EXPECT_NEAR(msk::volumeSimplexVolume(vm, vm.simplex.positions), side * side * side, 1e-6 * side * side * side);
-  std::printf("[measure] cube dual: %d tets + %d ghosts, %d coplanar-neighbour vertices, max rest residual %.2e mm\n",
-              vm.tetCount(), vm.ghostCount(), degenerate, r.rowwise().norm().maxCoeff());
 }
 
 // With the ghosts fixed at rest, the 3-simplex constraints restore a scrambled interior.
@@ -175,9 +169,8 @@ TEST(VolumeSimplexConstraints, RestoreInteriorWithGhostsFixed) {
   const msk::Points rest = vm.simplex.positions;
   std::mt19937 rng(3);
   msk::Points p = rest;
-  for (int v = 0; v < vm.tetCount(); ++v) p.row(v) += randomVec(rng, 0.1 * diag / std::sqrt(3.0)).transpose();
+  for (int v = 0; v < vm.tetCount(); ++v) p.row(v) += uniformVector(rng, 0.1 * diag / std::sqrt(3.0)).transpose();
   const double before = (p - rest).rowwise().norm().maxCoeff() / diag;
-  const double volBefore = msk::volumeSimplexVolume(vm, p);
   EXPECT_GT(before, 0.05);
   msk::VolumeSimplexConstraints c(vm, 1.0);
   const Eigen::VectorXd w = ghostsFixed(vm);
@@ -188,8 +181,6 @@ TEST(VolumeSimplexConstraints, RestoreInteriorWithGhostsFixed) {
   const double vol = msk::volumeSimplexVolume(vm, p);
   EXPECT_LT(after, 0.01);
   EXPECT_NEAR(vol, vol0, 0.02 * vol0);
-  std::printf("[measure] perturbed interior: max error %.1f%% -> %.2e%% of diagonal; volume %.2f%% -> %.2e%% off\n",
-              100 * before, 100 * after, 100 * std::fabs(volBefore - vol0) / vol0, 100 * std::fabs(vol - vol0) / vol0);
 }
 
 // The surface drives the volume: ghosts moved by an affine map pull the interior to the same map (ε̃ are affine
@@ -215,7 +206,7 @@ TEST(VolumeSimplexConstraints, StackedAndMomentumConserving) {
   const int first = 7, n = vm.vertexCount();
   std::mt19937 rng(5);
   msk::Points p(first + n + 3, 3);
-  for (int i = 0; i < p.rows(); ++i) p.row(i) = randomVec(rng, 1.0).transpose();
+  for (int i = 0; i < p.rows(); ++i) p.row(i) = uniformVector(rng, 1.0).transpose();
   p.middleRows(first, n) += vm.simplex.positions;
   Eigen::VectorXd w(p.rows());
   std::uniform_real_distribution<double> um(0.5, 2.0);

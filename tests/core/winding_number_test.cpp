@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "msk/core/error.h"
-#include "test_support.h"
+#include "msk/test/shapes.h"
 
 namespace {
 /// Two nested outward spheres in one mesh: points inside the inner one are covered twice.

@@ -6,7 +6,7 @@
 #include <limits>
 
 #include "msk/core/error.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 using msk::Json;
 

@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "msk/core/error.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 namespace {
 

@@ -16,7 +16,7 @@
 
 #include "msk/core/error.h"
 #include "msk/core/log.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 namespace {
 

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "msk/core/error.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -18,16 +19,6 @@ msk::Grid obliqueGrid(const Eigen::Vector3d& center, double extentMm, bool impro
   for (int a = 0; a < 3; ++a) g.dims[a] = static_cast<int>(std::ceil(extentMm / g.spacing[a])) + 1;
   g.origin = center - g.direction * g.spacing.cwiseProduct((g.dims.cast<double>() - Eigen::Vector3d::Ones()) / 2);
   return g;
-}
-
-// Signed distance to a sphere (negative inside), sampled at voxel centres.
-msk::ImageF sphereSdf(const msk::Grid& g, const Eigen::Vector3d& c, double r) {
-  msk::ImageF f(g);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        f.at(i, j, k) = static_cast<float>((g.toWorld(Eigen::Vector3d(i, j, k)) - c).norm() - r);
-  return f;
 }
 
 double maxRadiusError(const msk::TriangleMesh& m, const Eigen::Vector3d& c, double r) {
@@ -46,7 +37,7 @@ TEST(Isosurface, SphereSdfOnObliqueAnisotropicGridIsClosedAndExact) {
     const msk::Grid g = obliqueGrid(c, 40, improper);
     ASSERT_EQ(g.problem(), "");
     EXPECT_NEAR(g.direction.determinant(), improper ? -1.0 : 1.0, 1e-12);
-    const msk::ImageF sdf = sphereSdf(g, c, r);
+    const msk::ImageF sdf = msk::test::sphereSdf(g, c, r);
     msk::IsosurfaceOptions below;
     below.inside = msk::IsoInside::Below;
     const msk::TriangleMesh m = msk::isosurface(sdf, 0.0, below);
@@ -76,7 +67,7 @@ TEST(Isosurface, ObjectTouchingTheBorderIsClosedByPadding) {
   msk::Grid g;
   g.dims = {20, 20, 20};
   const Eigen::Vector3d c(0, 0, 0);  // sphere centred on voxel (0,0,0): only one octant is inside the grid
-  const msk::ImageF sdf = sphereSdf(g, c, 8.0);
+  const msk::ImageF sdf = msk::test::sphereSdf(g, c, 8.0);
   msk::IsosurfaceOptions below;
   below.inside = msk::IsoInside::Below;
   const msk::TriangleMesh m = msk::isosurface(sdf, 0.0, below);

@@ -14,7 +14,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/rasterize.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 namespace {
 

@@ -1,25 +1,21 @@
 // Collision response chosen per scene pair (mode, target, "resolution"): the scene validates the resolution key, and
 // the bundled thigh scene segmented with velocity-mode contacts and with the global resolution keeps its objects
 // apart and as accurate as the default (position, spring, sequential), and report settings say what each pair used.
+// The thigh runs are shared with bench/phantom_bench.cpp, which reports their figures (BM_ThighSceneCollisionModes).
 #include <gtest/gtest.h>
 
-#include <algorithm>
-#include <cstdio>
 #include <string>
 #include <vector>
 
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
-#include "msk/imaging/nifti_io.h"
-#include "msk/segmentation/metrics.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/phantom_scenarios.h"
 
 namespace {
-
-const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1";
 
 std::string twoObjects(const std::string& collisions) {
   return R"({"objects": [
@@ -83,31 +79,18 @@ TEST(CollisionResponseScene, ResolutionKeyIsReadAndValidated) {
 // two labels, Dice per object stays at the default's level (femur 0.978, quadriceps 0.968, hamstrings 0.968, adductors
 // 0.972 with position, spring, sequential; README), and the settings written to report.json name each pair's response.
 TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
-  const msk::ImageF img = msk::readNifti<float>(kSample + "/image.nii.gz");
-  const msk::LabelMap truth = msk::readNifti<int32_t>(kSample + "/labels.nii.gz");
+  const msk::test::BundledThigh thigh = msk::test::loadBundledThigh();
   const double defaultDice[4] = {0.978, 0.968, 0.968, 0.972};
-  struct Case {
-    const char* name;
-    msk::CollisionMode mode;
-    msk::CollisionResolution resolution;
-  };
-  for (const Case& c : {Case{"velocity, spring, sequential", msk::CollisionMode::Velocity,
-                             msk::CollisionResolution::Sequential},
-                        Case{"position, spring, global", msk::CollisionMode::Position, msk::CollisionResolution::Global}}) {
-    msk::Scene scene = msk::loadScene(kSample + "/scene.json");
+  for (const msk::test::ThighCollisionCase& c : msk::test::thighCollisionCases()) {
+    msk::Scene scene = thigh.scene;
     ASSERT_EQ(scene.collisions.size(), 6u);
     for (msk::CollisionPair& p : scene.collisions) p.mode = c.mode;
     msk::SegmentOptions opts;
     opts.collision.resolution = c.resolution;  // no pair sets its own
-    const msk::SegmentationResult res = msk::segmentScene(img, scene, opts);
-    std::printf("%-30s overlap %zu voxels, deepest %.3f mm, Dice (default):", c.name, res.overlapVoxels,
-                *std::max_element(res.pairPenetrationMm.begin(), res.pairPenetrationMm.end()));
-    for (int l = 1; l <= 4; ++l) {
-      const double dice = msk::labelMetrics(res.labels, l, truth, l).dice;
-      std::printf(" %s %.3f (%.3f)", res.objects[static_cast<size_t>(l - 1)].name.c_str(), dice, defaultDice[l - 1]);
-      EXPECT_GT(dice, defaultDice[l - 1] - 0.01) << c.name << " " << res.objects[static_cast<size_t>(l - 1)].name;
-    }
-    std::printf("  (%.1f s)\n", res.seconds);
+    const msk::test::ThighRun run = msk::test::segmentThigh(thigh, scene, opts);
+    const msk::SegmentationResult& res = run.res;
+    for (size_t i = 0; i < 4; ++i)
+      EXPECT_GT(run.dice[i], defaultDice[i] - 0.01) << c.name << " " << res.objects[i].name;
     EXPECT_EQ(res.overlapVoxels, 0u) << c.name;
     for (double d : res.pairPenetrationMm) EXPECT_LE(d, 0.1) << c.name;
     const msk::Json j = msk::settingsJson(opts, res);

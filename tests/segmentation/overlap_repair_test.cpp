@@ -42,9 +42,6 @@ TEST(OverlapRepair, OverlappingBallsEndWithNoSharedVoxel) {
   ASSERT_GT(before, 10u);
   const msk::OverlapRepairReport r = msk::repairOverlapVoxels({&a, &b}, {{0, 1}}, g, 0.1, masks);
   const size_t after = shared(msk::insideVoxels(a, g), msk::insideVoxels(b, g));
-  std::printf("shared voxels %zu -> %zu; %ld handed over in %d rounds; volumes %.0f -> %.0f and %.0f -> %.0f mm3\n",
-              before, after, r.handedOver, r.rounds, msk::enclosedVolume(a0), msk::enclosedVolume(a),
-              msk::enclosedVolume(b0), msk::enclosedVolume(b));
   EXPECT_EQ(after, 0u);
   EXPECT_EQ(r.remaining, 0u);
   EXPECT_GE(r.handedOver, static_cast<long>(before));

@@ -9,7 +9,8 @@
 #include <vector>
 
 #include "msk/core/error.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -151,14 +152,8 @@ TEST(QcPictures, OtherObjectsDimmedAndReferenceInWhite) {
   const Synthetic s = synthetic(false);
   // A third object crossing the ball's axial plane, and a reference that is the ball shifted by 3 mm.
   msk::LabelMap labels = s.labels, reference(s.labels.grid, 0);
-  const msk::Grid& g = labels.grid;
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) {
-        const Eigen::Vector3d w = g.toWorld(Eigen::Vector3d(i, j, k));
-        if ((w - s.ballCentre - Eigen::Vector3d(-25, 0, 0)).norm() <= 6) labels.at(i, j, k) = 5;
-        if ((w - s.ballCentre - Eigen::Vector3d(3, 0, 0)).norm() <= 9) reference.at(i, j, k) = 1;
-      }
+  msk::test::paintBall(labels, s.ballCentre + Eigen::Vector3d(-25, 0, 0), 6, 5);
+  msk::test::paintBall(reference, s.ballCentre + Eigen::Vector3d(3, 0, 0), 9, 1);
   const std::vector<msk::QcObject> objects = {{"ball", 1}, {"other", 5}};
   ScratchDir plain, withRef;
   msk::writeQcPictures(plain.path(), s.image, labels, objects);

@@ -15,7 +15,7 @@
 #include "msk/phantom/phantom.h"
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/transform_fit.h"
-#include "test_support.h"
+#include "msk/test/files.h"
 
 namespace {
 

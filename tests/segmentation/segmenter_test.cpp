@@ -8,17 +8,9 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
-#include "test_support.h"
+#include "msk/test/volumes.h"
 
 namespace {
-
-/// A ball (or ellipsoid with semi-axes `axes`) image with partial volume: `inside` in, `outside` out.
-msk::ImageF ellipsoidImage(const msk::Grid& g, const Eigen::Vector3d& center, const Eigen::Vector3d& axes,
-                           float inside, float outside) {
-  return msk::test::partialVolumeImage(
-      g, [&](const Eigen::Vector3d& x) { return (x - center).cwiseQuotient(axes).squaredNorm() <= 1.0; }, inside,
-      outside);
-}
 
 msk::Grid cubeGrid(double spacing, double halfWidthMm, const Eigen::Vector3d& rotDeg = Eigen::Vector3d::Zero()) {
   msk::Grid g;
@@ -59,14 +51,12 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
   const double spacing = 1.0, r = 20.0;
   const msk::Grid g = cubeGrid(spacing, 32, {10, -5, 20});
   const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(r), 200.f, 800.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
   for (double start : {r - 3.0, r + 3.0}) {
     msk::SegmentOptions opts;
     const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(start, 3, c)), opts);
     double mx = 0;
     const double mean = meanRadialError(res.objects[0].mesh, c, r, &mx);
-    std::printf("start r=%.1f: mean |r-20| = %.3f mm, max %.3f mm, %d+%d steps\n", start, mean, mx,
-                res.objects[0].levels[0].steps, res.objects[0].levels.back().steps);
     EXPECT_LT(mean, 0.25 * spacing) << "start radius " << start;
     EXPECT_LT(mx, 1.0 * spacing) << "start radius " << start;
     EXPECT_EQ(msk::closedMeshProblem(res.objects[0].mesh), "");
@@ -77,13 +67,12 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
 TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const Eigen::Vector3d axes(22, 16, 12);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
   msk::TriangleMesh templ = msk::makeIcosphere(1.0, 4);
   for (int i = 0; i < templ.vertexCount(); ++i) templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose());
   msk::SegmentOptions opts;
   const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(templ), opts);
   const Eigen::VectorXd& disp = res.objects[0].mesh.pointData.at("displacement_mm");
-  std::printf("static template: mean displacement %.4f mm, max %.4f mm\n", disp.mean(), disp.maxCoeff());
   EXPECT_LT(disp.mean(), 0.1);
 }
 
@@ -91,7 +80,7 @@ TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
 TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
   const msk::Grid g = cubeGrid(1.2, 30);
   const Eigen::Vector3d c(0.5, 0.2, -0.3);
-  const msk::ImageF img = ellipsoidImage(g, c, Eigen::Vector3d::Constant(18.0), 900.f, 150.f);
+  const msk::ImageF img = msk::test::ballImage(g, c, 18.0, 900.f, 150.f);
   for (double gamma : {0.0, 1e-12, 1.0}) {
     for (double image : {0.0, 1.0}) {
       msk::SegmentOptions opts;
@@ -102,7 +91,6 @@ TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
       ASSERT_TRUE(m.vertices.allFinite());
       double mx = 0;
       const double mean = meanRadialError(m, c, image > 0 ? 18.0 : 16.0, &mx);
-      std::printf("gamma %.0e image %.0f: mean radial error %.3f mm, max %.3f mm\n", gamma, image, mean, mx);
       if (image == 0.0) EXPECT_LT(mx, 0.5);          // no image force: the template barely moves
       else if (gamma > 0.5) EXPECT_LT(mean, 0.3);    // stiff shape memory still reaches the edge
       else EXPECT_LT(mean, 1.0);                     // no memory: noisy but bounded
@@ -129,7 +117,7 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
 }
 
 // The --quality presets map to the settings the README and `mskseg segment --help` document, and explicit scheme
-// settings override them (issue 5); bad scheme settings are refused.
+// settings override them; bad scheme settings are refused.
 TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
   msk::Grid g;
   g.spacing = Eigen::Vector3d(1.0, 2.0, 4.0);  // tolerance is a share of the smallest spacing
@@ -221,7 +209,7 @@ TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
 TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const Eigen::Vector3d axes(20, 14, 11);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
+  const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
   msk::TriangleMesh templ = msk::makeIcosphere(1.0, 3);
   for (int i = 0; i < templ.vertexCount(); ++i)
     templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose()) + Eigen::RowVector3d(3, -2, 1);
@@ -239,10 +227,6 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   const double change = o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0;
   // The surface reached the ellipsoid (which has the template's volume), as without the volume model.
   const Eigen::Vector3d centre = o.mesh.vertices.colwise().mean();
-  std::printf("volume model: %d tets, volume %.0f mm3 vs template %.0f (%+.2f %%), surface centre (%.2f %.2f %.2f), "
-              "volume inside the surface %.0f mm3\n",
-              o.volumeMesh.tetCount(), o.volumeModelMm3, o.volumeModelTemplateMm3, 100 * change, centre.x(), centre.y(),
-              centre.z(), o.volumeMm3);
   EXPECT_LT(std::abs(change), 0.02);
   EXPECT_LT(centre.norm(), 0.5);  // moved the 3.7 mm back to the ellipsoid's centre
   EXPECT_NEAR(o.volumeMm3, 4.0 / 3.0 * M_PI * axes.prod(), 0.03 * 4.0 / 3.0 * M_PI * axes.prod());
@@ -252,7 +236,8 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
 // Collision detection runs its sets on --threads threads; the result is the same as on one.
 TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   const msk::Grid g = cubeGrid(1.0, 30);
-  const msk::ImageF img = ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
+  const msk::ImageF img =
+      msk::test::ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
   msk::Scene scene = oneObjectScene(msk::makeIcosphere(10, 3, {-7, 0, 0}));
   msk::SceneObject other = scene.objects[0];
   other.name = "other";
@@ -297,8 +282,6 @@ TEST(Segmenter, RefinementPassFinishesTheRefiningObjectAndLeavesTheOthers) {
   double maxPlain = 0, maxRefined = 0;
   const double errPlain = meanRadialError(plain.objects[0].mesh, ca, r, &maxPlain);
   const double errRefined = meanRadialError(refined.objects[0].mesh, ca, r, &maxRefined);
-  std::printf("ellipsoid template on a ball: mean |r - 12| %.3f mm (max %.3f) -> with the refinement pass %.3f mm "
-              "(max %.3f)\n", errPlain, maxPlain, errRefined, maxRefined);
   EXPECT_LT(errRefined, 0.5 * errPlain);
   EXPECT_LT(maxRefined, maxPlain);
   ASSERT_EQ(refined.objects[0].levels.size(), plain.objects[0].levels.size() + 1);

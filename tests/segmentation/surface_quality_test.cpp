@@ -44,11 +44,6 @@ TEST(SurfaceQuality, RemeshingGivesWellShapedTrianglesOnTheSameSurface) {
   const std::vector<double> before = smallestAngles(in);
   const msk::TriangleMesh out = msk::remeshIsotropic(in, 2000);
   const std::vector<double> after = smallestAngles(out);
-  std::printf(
-      "stretched sphere: %d -> %d vertices; smallest angle 5th percentile %.1f -> %.1f deg; volume %.1f -> "
-      "%.1f mm^3\n",
-      in.vertexCount(), out.vertexCount(), before[before.size() / 20], after[after.size() / 20],
-      msk::enclosedVolume(in), msk::enclosedVolume(out));
   EXPECT_EQ(msk::closedMeshProblem(out), "");
   EXPECT_NEAR(out.vertexCount(), 2000, 200);
   EXPECT_LT(before[before.size() / 20], 15.0);  // the input is made of thin triangles
@@ -59,7 +54,6 @@ TEST(SurfaceQuality, RemeshingGivesWellShapedTrianglesOnTheSameSurface) {
   // than an edge; this is what a uniform remesh gives up, and why bones keep their templates' triangulation).
   const double edge = msk::meanEdgeLength(out);
   const msk::SegmentationMetrics d = msk::meshMetrics(out, in);
-  std::printf("mean edge %.2f mm; distance to the input: mean %.3f mm, Hausdorff %.3f mm\n", edge, d.assd, d.hausdorff);
   EXPECT_LT(d.assd, 0.05 * edge);
   EXPECT_LT(d.hausdorff, 0.5 * edge);
   EXPECT_EQ(msk::selfIntersections(out), 0u);
@@ -98,10 +92,6 @@ TEST(SurfaceQuality, UnfoldingRemovesALocalFoldAndMovesOnlyItsNeighbourhood) {
   const msk::TriangleMesh folded = m;
   ASSERT_GT(msk::selfIntersections(m), 0u);
   const msk::UnfoldReport r = msk::unfoldSurface(m);
-  std::printf(
-      "fold of %zu crossing face pairs: %zu left after %d rounds, %d vertices moved, at most %.2f mm (edge %.2f "
-      "mm)\n",
-      r.before, r.after, r.rounds, r.verticesMoved, r.maxMoveMm, edge);
   EXPECT_EQ(r.before, msk::selfIntersections(folded));
   EXPECT_EQ(r.after, 0u);
   EXPECT_EQ(msk::selfIntersections(m), 0u);

@@ -3,14 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 #include "msk/core/error.h"
 #include "msk/imaging/nifti_io.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
@@ -23,12 +22,7 @@ msk::LabelMap ballLabels(const Eigen::Vector3d& c, double r, int label,
   g.dims = {48, 48, 18};
   g.origin = c - dir * g.spacing.cwiseProduct((g.dims.cast<double>() - Eigen::Vector3d::Ones()) / 2) +
              Eigen::Vector3d(0.31, -0.17, 0.43);
-  msk::LabelMap lab(g, 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if ((g.toWorld(Eigen::Vector3d(i, j, k)) - c).norm() <= r) lab.at(i, j, k) = label;
-  return lab;
+  return msk::test::ballLabels(g, c, r, label);
 }
 
 struct RadiusStats {
@@ -63,9 +57,7 @@ TEST(TemplateBuilder, BallOnThickSlicesIsSmoothClosedAndTrue) {
     }
     const msk::LabelMap lab = ballLabels(c, r, 7, dir);
     msk::TemplateReport rep;
-    const auto t0 = std::chrono::steady_clock::now();
     const msk::TriangleMesh m = msk::templateFromLabels(lab, 7, {}, &rep);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ASSERT_EQ(msk::closedMeshProblem(m), "");
     EXPECT_DOUBLE_EQ(rep.sigmaMm, 1.5);  // default: half the largest spacing
     EXPECT_EQ(rep.componentsDropped, 0u);
@@ -77,9 +69,6 @@ TEST(TemplateBuilder, BallOnThickSlicesIsSmoothClosedAndTrue) {
     EXPECT_LT(st.maxAbs, 1.5);  // no 3 mm staircase left
     EXPECT_GE(m.vertexCount(), 2700);
     EXPECT_LE(m.vertexCount(), 3000);
-    std::printf("ball r=15 on 1x1x3 mm (%s): volume %+.2f %%, mean |r-15| %.3f mm, max %.3f mm, %d vertices, %.0f ms\n",
-                oblique ? "oblique" : "axis-aligned", 100 * (v / exact - 1), st.meanAbs, st.maxAbs, m.vertexCount(),
-                ms);
   }
 }
 
@@ -106,12 +95,7 @@ TEST(TemplateBuilder, SmoothingAndVolumeOptions) {
 
 TEST(TemplateBuilder, LargestComponentAndAbsentLabel) {
   msk::LabelMap lab = ballLabels({0, 0, 0}, 10, 3);
-  const msk::Grid& g = lab.grid;
-  // A second, smaller ball of the same label, well apart.
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if ((g.toWorld(Eigen::Vector3d(i, j, k)) - Eigen::Vector3d(0, 17, 0)).norm() <= 4.5) lab.at(i, j, k) = 3;
+  msk::test::paintBall(lab, Eigen::Vector3d(0, 17, 0), 4.5, 3);  // a second, smaller ball of the same label, well apart
   msk::TemplateOptions o;
   o.vertices = 1000;
   msk::TemplateReport rep;
@@ -181,9 +165,7 @@ TEST(TemplateBuilder, RealCtFemur) {
   if (shared.empty()) GTEST_SKIP() << "shared data not available";
   const msk::LabelMap lab = msk::readNifti<int32_t>(shared + "/totalseg-ct/labels.nii.gz");
   msk::TemplateReport rep;
-  const auto t0 = std::chrono::steady_clock::now();
   const msk::TriangleMesh m = msk::templateFromLabels(lab, 75, {}, &rep);
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(msk::closedMeshProblem(m), "");
   const double v = msk::enclosedVolume(m);
   EXPECT_NEAR(v, rep.maskVolumeMm3, 0.05 * rep.maskVolumeMm3);
@@ -207,8 +189,4 @@ TEST(TemplateBuilder, RealCtFemur) {
   EXPECT_EQ(msk::closedMeshProblem(mirrored), "");
   EXPECT_NEAR(msk::enclosedVolume(mirrored), v, 1e-6 * v);
   EXPECT_GT(msk::enclosedVolume(mirrored), 0);
-  std::printf(
-      "CT femur (label 75): %zu voxels, template %d vertices, volume %+.2f %% of the voxel volume, offset %.3f mm, "
-      "%.0f ms\n",
-      rep.voxels, m.vertexCount(), 100 * (v / rep.maskVolumeMm3 - 1), rep.offsetMm, ms);
 }

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <random>
 #include <set>
 #include <utility>
@@ -52,10 +51,6 @@ TEST(Tetrahedralize, SphereVolumeOrientationAndDeterminism) {
     EXPECT_TRUE(a.tets == b.tets);
     EXPECT_TRUE(a.nodes == b.nodes);
   }
-  std::printf(
-      "[measure] icosphere(20, 3): %d nodes, %d tets, volume %.1f vs surface %.1f mm^3 (%+.2f%%), "
-      "smallest tet %.3f mm^3, %d boundary faces\n",
-      a.nodeCount(), a.tetCount(), vol.sum(), surfaceVolume, 100 * error, vol.minCoeff(), boundary.faceCount());
 }
 
 // The tet mesh carries a 3-simplex volume model whose rest shape satisfies its constraints.
@@ -68,10 +63,6 @@ TEST(Tetrahedralize, FeedsVolumeSimplexModel) {
   EXPECT_LT(r.rowwise().norm().maxCoeff(), 1e-9);
   const double v = msk::volumeSimplexVolume(vm, vm.simplex.positions);
   EXPECT_NEAR(v, msk::totalVolume(m), 1e-6 * msk::totalVolume(m));
-  int degenerate = 0;
-  for (int i = 0; i < vm.vertexCount(); ++i) degenerate += vm.degenerate[i] != 0 ? 1 : 0;
-  const double maxEps = vm.epsilon.topRows(vm.tetCount()).cwiseAbs().maxCoeff();
-  const double maxEpsGhost = vm.epsilon.bottomRows(vm.ghostCount()).cwiseAbs().maxCoeff();
   EXPECT_EQ(vm.degenerate.head(vm.tetCount()).cwiseAbs().sum(), 0);
 
   // Unstructured interior scrambled by up to 10 % of the diagonal, ghosts fixed: the constraints restore it.
@@ -89,10 +80,6 @@ TEST(Tetrahedralize, FeedsVolumeSimplexModel) {
   const double volErr = std::fabs(msk::volumeSimplexVolume(vm, p) - v) / v;
   EXPECT_LT(posErr, 0.01);
   EXPECT_LT(volErr, 0.02);
-  std::printf(
-      "[measure] sphere volume model: %d tets + %d ghosts, %d coplanar-neighbour vertices, max |eps| tets "
-      "%.2f ghosts %.2f; after 1000 passes max error %.2e of diagonal, volume %.2e off\n",
-      vm.tetCount(), vm.ghostCount(), degenerate, maxEps, maxEpsGhost, posErr, volErr);
 }
 
 // Exudation removes slivers (same nodes, fewer and fuller tets); its tie-breaking is not repeatable, so only the
@@ -105,9 +92,6 @@ TEST(Tetrahedralize, ExudationRemovesSlivers) {
   EXPECT_EQ(msk::tetMeshProblem(exuded), "");
   EXPECT_NEAR(msk::totalVolume(exuded), msk::totalVolume(plain), 1e-6 * msk::totalVolume(plain));
   EXPECT_GT(msk::tetVolumes(exuded).minCoeff(), msk::tetVolumes(plain).minCoeff());
-  std::printf("[measure] smallest tet: %.3f mm^3 plain (%d tets), %.3f mm^3 exuded (%d tets)\n",
-              msk::tetVolumes(plain).minCoeff(), plain.tetCount(), msk::tetVolumes(exuded).minCoeff(),
-              exuded.tetCount());
 }
 
 // ODT smoothing, perturbation and exudation (as the segmenter's volume models use them): no sliver left (smallest
@@ -120,8 +104,6 @@ TEST(Tetrahedralize, OptimisersRemoveSliversRepeatably) {
                      b = msk::tetrahedralize(sphere, options);
   EXPECT_EQ(msk::tetMeshProblem(a), "");
   const double before = msk::tetMinDihedralAngles(plain).minCoeff(), after = msk::tetMinDihedralAngles(a).minCoeff();
-  std::printf("[measure] smallest dihedral angle: %.2f deg plain (%d tets), %.2f deg optimised (%d tets)\n", before,
-              plain.tetCount(), after, a.tetCount());
   EXPECT_GT(after, 10.0);
   EXPECT_GT(after, before);
   EXPECT_NEAR(msk::totalVolume(a), msk::totalVolume(plain), 0.01 * msk::totalVolume(plain));
@@ -202,11 +184,6 @@ TEST(Tetrahedralize, InteriorNodesInEveryTet) {
   EXPECT_GT(msk::tetVolumes(a).minCoeff(), 0.0);
   EXPECT_TRUE(a.tets == b.tets);
   EXPECT_TRUE(a.nodes == b.nodes);
-  std::printf("[measure] flat ellipsoid at the segmenter's sizes: %d tets, %d with all nodes on the surface, %d bridge edges -> "
-              "bridges split: %d Steiner nodes, %d tets (tets only: %d, %d); smallest dihedral %.2f -> %.2f deg\n",
-              plain.tetCount(), before, bridgesBefore, a.nodeCount() - plain.nodeCount(), a.tetCount(),
-              tetsOnly.nodeCount() - plain.nodeCount(), tetsOnly.tetCount(),
-              msk::tetMinDihedralAngles(plain).minCoeff(), msk::tetMinDihedralAngles(a).minCoeff());
 }
 
 TEST(Tetrahedralize, RejectsOpenSurfacesAndBadOptions) {

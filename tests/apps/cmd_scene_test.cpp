@@ -8,7 +8,8 @@
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/scene.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/cli.h"
 
 namespace fs = std::filesystem;
 using msk::test::runCli;

@@ -7,7 +7,8 @@
 #include <vector>
 
 #include "msk/imaging/json.h"
-#include "test_support.h"
+#include "msk/test/files.h"
+#include "msk/test/cli.h"
 
 namespace fs = std::filesystem;
 using msk::test::runCli;

@@ -1,0 +1,98 @@
+#include "msk/core/collision_constraint.h"
+
+#include <random>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "msk/core/error.h"
+#include "msk/core/triangle_mesh.h"
+#include "msk/test/shapes.h"
+
+namespace {
+using msk::test::uniformVector;
+}  // namespace
+
+// Collision position correction (Table 4.23, spring): reaches the gap, conserves linear momentum.
+TEST(CollisionKernel, PushesOutToTheGapAndConservesLinearMomentum) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> um(0.2, 5.0), ub(0.05, 1.0);
+  for (int t = 0; t < 500; ++t) {
+    const Eigen::Vector3d pi[3] = {Eigen::Vector3d(0, 0, 0) + uniformVector(rng, 0.3),
+                                   Eigen::Vector3d(4, 0, 0) + uniformVector(rng, 0.3),
+                                   Eigen::Vector3d(0, 4, 0) + uniformVector(rng, 0.3)};
+    double b[3] = {ub(rng), ub(rng), ub(rng)};
+    const double sum = b[0] + b[1] + b[2];
+    for (double& x : b) x /= sum;
+    const Eigen::Vector3d n = (pi[1] - pi[0]).cross(pi[2] - pi[0]).normalized();
+    const Eigen::Vector3d pbar = b[0] * pi[0] + b[1] * pi[1] + b[2] * pi[2];
+    const Eigen::Vector3d p = pbar - 0.7 * n + uniformVector(rng, 0.2);  // 0.7 mm inside the partner
+    const double w = 1.0 / um(rng), wi[3] = {1.0 / um(rng), 1.0 / um(rng), 1.0 / um(rng)};
+    Eigen::Vector3d dp, dpi[3];
+    ASSERT_TRUE(msk::collisionCorrection(p, pi, b, n, 0.5, 0.0, w, wi, dp, dpi));
+    const Eigen::Vector3d lin = dp / w + dpi[0] / wi[0] + dpi[1] / wi[1] + dpi[2] / wi[2];
+    EXPECT_LT(lin.norm(), 1e-9 * (1 + dp.norm() / w));
+    // After the correction (same normal, linearised), P sits exactly `gap` outside along n.
+    const Eigen::Vector3d newBar = b[0] * (pi[0] + dpi[0]) + b[1] * (pi[1] + dpi[1]) + b[2] * (pi[2] + dpi[2]);
+    EXPECT_NEAR(((p + dp) - newBar).dot(n), 0.5, 1e-9);
+  }
+  // Already outside by more than the gap: nothing.
+  const Eigen::Vector3d pi[3] = {{0, 0, 0}, {4, 0, 0}, {0, 4, 0}};
+  const double b[3] = {1.0 / 3, 1.0 / 3, 1.0 / 3}, wi[3] = {1, 1, 1};
+  Eigen::Vector3d dp, dpi[3];
+  EXPECT_FALSE(
+      msk::collisionCorrection(Eigen::Vector3d(1, 1, 2), pi, b, Eigen::Vector3d::UnitZ(), 0.5, 0.0, 1, wi, dp, dpi));
+}
+
+// Two overlapping spheres stacked in one particle system separate under the collision sets of both directions.
+TEST(CollisionConstraints, OverlappingSpheresSeparate) {
+  const msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {18, 0, 0});
+  const int na = a.vertexCount(), nb = b.vertexCount();
+  msk::Points p(na + nb, 3);
+  p.topRows(na) = a.vertices;
+  p.bottomRows(nb) = b.vertices;
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(na + nb);
+  msk::Triangles ta = a.faces, tb = b.faces.array() + na;
+  msk::CollisionConstraints ab(0, na, tb, 0.0, 3.0, 0.0), ba(na, nb, ta, 0.0, 3.0, 0.0);
+  const Eigen::RowVector3d momentumBefore = p.colwise().sum();
+  for (int it = 0; it < 30; ++it) {
+    ab.detect(p);
+    ba.detect(p);
+    ab.project(p, w);
+    ba.project(p, w);
+  }
+  ab.detect(p);
+  ba.detect(p);
+  EXPECT_LT(ab.maxPenetration(p), 0.1);
+  EXPECT_LT(ba.maxPenetration(p), 0.1);
+  EXPECT_LT((p.colwise().sum() - momentumBefore).norm(), 1e-8 * p.rows());
+  EXPECT_THROW(msk::CollisionConstraints(0, na, tb, -1.0, 3.0, 0.0), msk::ParameterError);
+}
+
+// Without the inside test a vertex is taken to be outside the partner: a contact can keep it `gap` away but never
+// pushes it through the surface; with the test, a vertex inside is pushed out along the partner's outward normal.
+TEST(CollisionConstraints, InsideTestDecidesTheSideAndTheOutsideAssumptionNeverPushesThrough) {
+  const msk::TriangleMesh b = msk::makeIcosphere(10, 3);
+  const int nb = b.vertexCount();
+  for (const double start : {9.5, 10.1}) {  // 0.5 mm inside, 0.1 mm outside (within the 0.2 mm gap)
+    for (const bool insideTest : {true, false}) {
+      msk::Points p(nb + 1, 3);
+      p.topRows(nb) = b.vertices;
+      p.row(nb) = Eigen::RowVector3d(start, 0.01, 0.02);
+      msk::Triangles tb = b.faces;
+      msk::CollisionConstraints c(nb, 1, tb, 0.2, 1.0, 0.0);
+      const Eigen::VectorXd w = Eigen::VectorXd::Ones(nb + 1);
+      const double r0 = p.row(nb).norm();
+      c.detect(p, insideTest);
+      ASSERT_EQ(c.contacts(), 1);
+      c.project(p, w);
+      const double r = p.row(nb).norm();
+      if (start > 10 || insideTest) {
+        EXPECT_GT(r, r0 + 0.02) << "start " << start << " insideTest " << insideTest;  // moved outward
+      } else {
+        EXPECT_LE(r, r0 + 1e-12) << "an assumed-outside vertex is pushed away from the surface it faces, inward";
+        EXPECT_GT(r, 9.5 - 0.25);  // ... by at most the gap: never through
+      }
+    }
+  }
+}
