@@ -7,8 +7,8 @@
 #include "msk/imaging/json.h"
 #include "msk/test/files.h"
 
-// Measured: femur 0.911, hip bone 0.948, gluteus maximus 0.885, gluteus medius 0.862, no overlap (README, Real
-// scans); the guards are those of RealScenes.CtFemurHipAndGlutealMusclesOfOneSide, whose templates are also displaced.
+// The figures are in docs/measurements.md (Real scans); the guards are those of
+// RealScenes.CtFemurHipAndGlutealMusclesOfOneSide, whose templates are also displaced.
 TEST(CtExample, RunsFromTheCommandLineAlone) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";

@@ -91,7 +91,7 @@ TEST(AxisFirst, RunDefaultAppliesOnlyToAxisObjectsThatDoNotSay) {
 
 // The phantom thigh's hamstrings and adductors (not tubes around one axis), each alone, their templates moved by
 // (8, 4, 0) mm: the stage by itself brings them back to the image. The full runs are measured beside it (bench):
-// there the radial constraints of a non-tubular muscle cost accuracy with or without the stage (README).
+// there the radial constraints of a non-tubular muscle cost accuracy with or without the stage (docs/measurements.md).
 TEST(AxisFirst, StageBringsDisplacedThighMusclesBack) {
   for (const char* name : {"hamstrings", "adductors"}) {
     SCOPED_TRACE(name);

@@ -77,7 +77,7 @@ TEST(CollisionResponseScene, ResolutionKeyIsReadAndValidated) {
 
 // The bundled thigh scene with every pair in velocity mode, and with every pair resolved globally: no voxel carries
 // two labels, Dice per object stays at the default's level (femur 0.978, quadriceps 0.968, hamstrings 0.968, adductors
-// 0.972 with position, spring, sequential; README), and the settings written to report.json name each pair's response.
+// 0.972 with position, spring, sequential; docs/measurements.md), and the settings written to report.json name each pair's response.
 TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
   const msk::test::BundledThigh thigh = msk::test::loadBundledThigh();
   const double defaultDice[4] = {0.978, 0.968, 0.968, 0.972};

@@ -42,7 +42,7 @@ TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
 // 0.770 → 0.859, no overlap. The gluteus medius is short of 0.88 (it reaches 0.849–0.866 from every start and option
 // tried, 0.859 from the undisplaced mirror, whose own Dice is 0.792; the best rigid fit of the mirrored left label onto
 // the right one scores 0.847, and a template started there ends at 0.867: the sides differ where the image shows no
-// boundary, see README and CtGlutealSidesBestRigidFit below); guard its level.
+// boundary, see docs/measurements.md and CtGlutealSidesBestRigidFit below); guard its level.
 TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   const std::string data = msk::test::sharedData();
   if (data.empty()) GTEST_SKIP() << "../shared/data absent";
@@ -56,7 +56,7 @@ TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   EXPECT_EQ(sc.overlapVoxels, 0u);
 }
 
-// How far a mirrored contralateral label can match at best on this CT (README): the best rigid fit of the left
+// How far a mirrored contralateral label can match at best on this CT (docs/measurements.md): the best rigid fit of the left
 // gluteus maximus and medius labels, mirrored, onto the right ones. Measured: maximus 0.827 → 0.858 (1.7°, centroid
 // moved 2.5 mm), medius 0.801 → 0.847 (3.9°, 5.4 mm); the gluteus medius template started at its fitted pose ends at
 // 0.867, so its 0.88 cannot come from placing the template better, only from the image, which shows no boundary toward
@@ -87,7 +87,7 @@ TEST(RealScenes, CtGlutealSidesBestRigidFit) {
   }
 }
 
-// What the CT image itself says about the gluteus medius' labelled boundary (README): the same scene with every
+// What the CT image itself says about the gluteus medius' labelled boundary (docs/measurements.md): the same scene with every
 // template built from the right side's OWN label (the shape the result should have), displaced by 3 mm and scaled by
 // ±3 % as above. If the image carried that boundary, the muscle would end near its label from there. It does not: the
 // run leaves it further from its label than its template started, with the profiles learned on the left side (as in

@@ -122,7 +122,7 @@ TEST(Scene, MinimalFormLoads) {
 }
 
 TEST(Scene, IssueExampleNamesUnknownCollisionObjects) {
-  // The form of the issue's example is accepted; its collision names "a", "b" are not objects of the scene.
+  // The short form with pair names is accepted; its collision names "a", "b" are not objects of the scene.
   SceneFiles f;
   expectSceneError(f.scene(R"({"objects": [{"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk"}],
                                "collisions": [["a", "b"]]})"),

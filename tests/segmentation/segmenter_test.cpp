@@ -116,7 +116,7 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);
 }
 
-// The --quality presets map to the settings the README and `mskseg segment --help` document, and explicit scheme
+// The --quality presets map to the settings docs/method.md and `mskseg segment --help` document, and explicit scheme
 // settings override them; bad scheme settings are refused.
 TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {
   msk::Grid g;

@@ -47,7 +47,7 @@ TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
 // Without the isotropic remeshing of the muscles' templates (decimated: triangles with edges from 0.2 to 28 mm), the
 // image forces fold their 2-simplex duals and the output surfaces cross themselves in hundreds of places (measured
 // 256 / 369 / 342 face pairs, without the unfolding; the femur, whose template is kept either way, none); remeshed,
-// none, for the same accuracy (the test above). SegmentOptions::remeshTemplates, README *Surface quality*.
+// none, for the same accuracy (the test above). SurfaceOptions::remeshTemplates, docs/method.md (Surface quality).
 TEST(ThighScene, MusclesKeptOnTheirDecimatedTemplatesFoldOntoThemselves) {
   const msk::test::ThighRun kept = segment(msk::test::loadBundledThigh(), true, false, false);
   for (const msk::ObjectResult& o : kept.res.objects) {
