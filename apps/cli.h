@@ -1,11 +1,10 @@
 #pragma once
 // Command-line parsing for the mskseg subcommands (CLI11): each subcommand binds its options into the structs it
 // fills, parseArgs() turns CLI11's errors into UsageError (exit code 2), and --help prints the generated help.
-#include <string>
-#include <vector>
-
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
+#include <string>
+#include <vector>
 
 #include "msk/core/error.h"
 

@@ -27,8 +27,8 @@
 #include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
-#include "msk/imaging/json.h"
 #include "msk/core/log.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
@@ -476,9 +476,8 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   const auto count = [&](const char* status) {
     return std::count_if(cases.begin(), cases.end(), [&](const Case& c) { return c.status == status; });
   };
-  std::cout << "batch: " << count("ok") << " ok, " << count("failed") << " failed, " << doneEarlier
-            << " done earlier, " << count("skipped") << " without " << b.imageName << " -> " << b.outAbs.string()
-            << "/summary.csv\n";
+  std::cout << "batch: " << count("ok") << " ok, " << count("failed") << " failed, " << doneEarlier << " done earlier, "
+            << count("skipped") << " without " << b.imageName << " -> " << b.outAbs.string() << "/summary.csv\n";
   return count("failed") > 0 ? 1 : 0;
 }
 

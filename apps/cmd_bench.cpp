@@ -28,7 +28,8 @@ std::vector<std::string> splitList(const std::string& text) {
 int benchScene(CLI::App& app, const std::vector<std::string>& argv) {
   SceneBenchOptions o;
   std::string out;
-  app.add_option("--structures", o.structures, "24: both thighs and lower legs, 4 bones + 20 muscles (default); 4: the thigh");
+  app.add_option("--structures", o.structures,
+                 "24: both thighs and lower legs, 4 bones + 20 muscles (default); 4: the thigh");
   app.add_option_function<std::string>(
       "--quality", [&o](const std::string& s) { o.segment.evolution.quality = parseQuality(s); },
       "segmentation preset (default balanced)");

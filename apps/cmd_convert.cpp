@@ -8,8 +8,8 @@ namespace msk::cli {
 
 int cmdConvert(const std::vector<std::string>& argv) {
   CommandLine app("convert",
-                         "Converts a closed surface mesh between .vtk (legacy 4.2), .vtp, .stl, .obj and .ply. The "
-                         "input's SPACE tag is honoured (untagged = LPS); OUT is written in --mesh-space and tagged.");
+                  "Converts a closed surface mesh between .vtk (legacy 4.2), .vtp, .stl, .obj and .ply. The "
+                  "input's SPACE tag is honoured (untagged = LPS); OUT is written in --mesh-space and tagged.");
   std::string in, out;
   MeshSpace space = MeshSpace::LPS;
   app.add_option("in", in, "the mesh to read")->required();
@@ -17,7 +17,8 @@ int cmdConvert(const std::vector<std::string>& argv) {
   app.add_option_function<std::string>(
       "--mesh-space", [&space](const std::string& s) { space = parseMeshSpace(s); }, "lps (default) or ras");
   if (!parseArgs(app, argv)) return 0;
-  if (!isMeshFile(out)) throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
+  if (!isMeshFile(out))
+    throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
   MeshSpace inSpace = MeshSpace::LPS;
   TriangleMesh m = readMesh(in, &inSpace);
   writeMesh(out, m, space);

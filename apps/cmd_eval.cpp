@@ -69,9 +69,11 @@ int cmdEval(const std::vector<std::string>& argv) {
   app.add_option("--csv", csvPath, "write the figures as CSV ('-': stdout, instead of the table)");
   addNumber(app, "--voxel", voxel, "grid spacing of the mesh overlap, mm, (0.05, 10] (default 0.5)");
   if (!parseArgs(app, argv)) return 0;
-  if (!(voxel > 0.05 && voxel <= 10)) throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
+  if (!(voxel > 0.05 && voxel <= 10))
+    throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
   std::vector<Row> rows;
-  if (isMeshFile(a) != isMeshFile(b)) throw UsageError("--result and --reference must both be meshes or both label maps");
+  if (isMeshFile(a) != isMeshFile(b))
+    throw UsageError("--result and --reference must both be meshes or both label maps");
   if (isMeshFile(a)) {
     rows.push_back({"mesh", meshMetrics(readMesh(a), readMesh(b), voxel)});
   } else {
@@ -91,8 +93,8 @@ int cmdEval(const std::vector<std::string>& argv) {
     for (int32_t l : labels) rows.push_back({std::to_string(l), labelMetrics(la, l, lb, l)});
   }
   if (jsonPath != "-" && csvPath != "-") {  // stdout carries the table unless it carries JSON or CSV
-    std::printf("%-8s %8s %8s %9s %9s %10s %12s %12s\n", "object", "dice", "jaccard", "assd_mm", "hd95_mm",
-                "hausd_mm", "vol_res_mL", "vol_ref_mL");
+    std::printf("%-8s %8s %8s %9s %9s %10s %12s %12s\n", "object", "dice", "jaccard", "assd_mm", "hd95_mm", "hausd_mm",
+                "vol_res_mL", "vol_ref_mL");
     for (const auto& r : rows)
       std::printf("%-8s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", r.name.c_str(), r.m.dice, r.m.jaccard,
                   r.m.assd, r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
@@ -105,16 +107,18 @@ int cmdEval(const std::vector<std::string>& argv) {
     Json list = Json::array();
     for (const auto& r : rows) list.push_back(metricsJson(r));
     j["metrics"] = list;
-    if (jsonPath == "-") std::cout << dumpJson(j, 2) << "\n";
-    else writeJsonFile(jsonPath, j);
+    if (jsonPath == "-")
+      std::cout << dumpJson(j, 2) << "\n";
+    else
+      writeJsonFile(jsonPath, j);
   }
   if (!csvPath.empty()) {
     std::ostringstream c;
     c << "object,dice,jaccard,assd_mm,hd95_mm,hausdorff_mm,volume_result_mm3,volume_reference_mm3\n";
     c.precision(8);
     for (const auto& r : rows)
-      c << r.name << "," << r.m.dice << "," << r.m.jaccard << "," << r.m.assd << "," << r.m.hd95 << ","
-        << r.m.hausdorff << "," << r.m.volumeA << "," << r.m.volumeB << "\n";
+      c << r.name << "," << r.m.dice << "," << r.m.jaccard << "," << r.m.assd << "," << r.m.hd95 << "," << r.m.hausdorff
+        << "," << r.m.volumeA << "," << r.m.volumeB << "\n";
     if (csvPath == "-") {
       std::cout << c.str();
     } else {

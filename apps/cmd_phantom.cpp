@@ -32,8 +32,9 @@ int cmdPhantom(const std::vector<std::string>& argv) {
                  "lower legs, each a bone wrapped by five muscles");
   if (!parseArgs(app, argv)) return 0;
   if (structures != 4 && structures != kMultiPhantomStructures)
-    throw ParameterError("--structures", std::to_string(structures),
-                         "must be 4 (thigh) or " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs)");
+    throw ParameterError(
+        "--structures", std::to_string(structures),
+        "must be 4 (thigh) or " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs)");
   checkPhantomOptions(opts);
   checkOutputFolder(out);
   Phantom p = structures == 4 ? makePhantom(opts, stderrProgress("phantom"))

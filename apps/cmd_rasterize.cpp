@@ -10,8 +10,8 @@ namespace msk::cli {
 
 int cmdRasterize(const std::vector<std::string>& argv) {
   CommandLine app("rasterize",
-                         "Voxels of IMAGE's grid whose centre lies inside the closed MESH get label N; the output has "
-                         "IMAGE's grid and affine exactly (sform and qform copied).");
+                  "Voxels of IMAGE's grid whose centre lies inside the closed MESH get label N; the output has "
+                  "IMAGE's grid and affine exactly (sform and qform copied).");
   std::string meshPath, likePath, out;
   int label = 1;
   app.add_option("--mesh", meshPath, "closed surface mesh (.vtk .vtp .stl .obj .ply)")->required();

@@ -189,7 +189,8 @@ int cmdScene(const std::vector<std::string>& argv) {
   checkTemplateOptions(r.templates);
   if (r.collisions != "auto" && r.collisions != "all" && r.collisions != "none")
     throw ParameterError("--collisions", r.collisions, "must be auto, all or none");
-  if (mirrorX && !std::isfinite(*mirrorX)) throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
+  if (mirrorX && !std::isfinite(*mirrorX))
+    throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
   checkOutputFolder(out);
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);

@@ -40,7 +40,8 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
     writeMesh(dir + "/" + o.name + ".vtk", o.mesh, outputs.space);
     objects[i]["mesh"] = o.name + ".vtk";
     if (o.selfIntersections > 0)
-      log::warn(o.name + ": " + std::to_string(o.selfIntersections) + " pairs of faces of its surface cross each other");
+      log::warn(o.name + ": " + std::to_string(o.selfIntersections) +
+                " pairs of faces of its surface cross each other");
     if (o.volumeMesh.tetCount() > 0) {
       // A tet mesh with inverted elements is not written (it would not be a valid volume); the report says so.
       if (o.invertedTets == 0) {
@@ -121,9 +122,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   report["image_info"] = imageJson(image, info);
   report["mesh_space"] = meshSpaceName(outputs.space);
   report.update(segmentReport(res, scene, opts));
-  writeFolderAtomically(out, [&](const std::string& dir) {
-    writeOutputs(dir, res, scene, image, info, outputs, report);
-  });
+  writeFolderAtomically(out,
+                        [&](const std::string& dir) { writeOutputs(dir, res, scene, image, info, outputs, report); });
   printSummary(res, scene, out);
   return 0;
 }

@@ -62,7 +62,8 @@ int cmdTemplate(const std::vector<std::string>& argv) {
   if (label < 1 || label > 2147483647L)
     throw ParameterError("--label", std::to_string(label), "must be in 1..2147483647");
   checkTemplateOptions(opts);
-  if (mirrorX && !std::isfinite(*mirrorX)) throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
+  if (mirrorX && !std::isfinite(*mirrorX))
+    throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
   if (!isMeshFile(out))
     throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
 

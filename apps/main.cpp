@@ -28,9 +28,11 @@ const std::map<std::string, Command>& commands() {
       {"eval", {msk::cli::cmdEval, "Dice, Jaccard, ASSD, HD95, Hausdorff between label maps or meshes"}},
       {"rasterize", {msk::cli::cmdRasterize, "closed mesh -> label map on an image's grid"}},
       {"convert", {msk::cli::cmdConvert, "convert meshes between .vtk .vtp .stl .obj .ply and LPS/RAS"}},
-      {"scene", {msk::cli::cmdScene, "scene.json and templates from a label map's labels (e.g. the other side, mirrored)"}},
+      {"scene",
+       {msk::cli::cmdScene, "scene.json and templates from a label map's labels (e.g. the other side, mirrored)"}},
       {"template", {msk::cli::cmdTemplate, "smooth template surface from a label map"}},
-      {"batch", {msk::cli::cmdBatch, "segment every case of a cohort folder with one scene (resumable, summary table)"}},
+      {"batch",
+       {msk::cli::cmdBatch, "segment every case of a cohort folder with one scene (resumable, summary table)"}},
       {"bench", {msk::cli::cmdBench, "benchmarks that print figures (bench scene: 24-structure phantom timing)"}},
   };
   return table;
@@ -53,9 +55,12 @@ int main(int argc, char** argv) {
   msk::LogLevel level = msk::LogLevel::Info;
   std::vector<std::string> rest;
   for (const auto& a : args) {
-    if (a == "--quiet") level = msk::LogLevel::Warn;
-    else if (a == "--verbose") level = msk::LogLevel::Debug;
-    else rest.push_back(a);
+    if (a == "--quiet")
+      level = msk::LogLevel::Warn;
+    else if (a == "--verbose")
+      level = msk::LogLevel::Debug;
+    else
+      rest.push_back(a);
   }
   msk::log::setLevel(level);
   msk::log::setSink([](msk::LogLevel l, const std::string& m) {

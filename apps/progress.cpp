@@ -1,11 +1,11 @@
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
-#include <memory>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
-
-#include <unistd.h>
+#include <memory>
 
 #include "commands.h"
 #include "msk/core/error.h"
@@ -35,7 +35,8 @@ ProgressFn stderrProgress(const std::string& task) {
     auto now = std::chrono::steady_clock::now();
     bool newStage = stage != st->stage;
     if (!newStage && pct == st->lastPercent) return;
-    if (!newStage && pct != 100 && (pct - st->lastPercent < 10 || now - st->last < std::chrono::milliseconds(500))) return;
+    if (!newStage && pct != 100 && (pct - st->lastPercent < 10 || now - st->last < std::chrono::milliseconds(500)))
+      return;
     st->stage = stage;
     st->lastPercent = pct;
     st->last = now;

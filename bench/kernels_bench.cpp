@@ -13,19 +13,19 @@
 #include <memory>
 #include <utility>
 
-#include "msk/core/collision_surface.h"
 #include "msk/core/collision_constraint.h"
-#include "msk/core/shape_matching_constraint.h"
-#include "msk/core/simplex_internal_constraint.h"
-#include "msk/core/target_constraint.h"
+#include "msk/core/collision_surface.h"
+#include "msk/core/constraint_set.h"
 #include "msk/core/medial_axis.h"
+#include "msk/core/shape_matching_constraint.h"
 #include "msk/core/simplex_batch.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/solver.h"
+#include "msk/core/target_constraint.h"
+#include "msk/core/transform_fit.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
-#include "msk/core/constraint_set.h"
-#include "msk/core/transform_fit.h"
 #include "msk/test/shapes.h"
 #include "msk/test/solver_scenarios.h"
 
@@ -141,13 +141,21 @@ void BM_SolverInternal(benchmark::State& state, msk::Scheme scheme) {
   finish(state, static_cast<int64_t>(o.iterations) * n, n);
 }
 BENCHMARK_CAPTURE(BM_SolverInternal, gauss_seidel, msk::Scheme::GaussSeidel)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_SolverInternal, coloured, msk::Scheme::ColouredGaussSeidel)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_SolverInternal, jacobi, msk::Scheme::Jacobi)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_SolverInternal, xpbd, msk::Scheme::Xpbd)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMillisecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
 
 // The same set of the sphere problem of the solver's tests (radius 10 mm, 20 480 vertices, γ = 0.8) on 1 and 2 threads
 // (the argument), each scheme at its test settings with 10 iterations per step, from the sphere scaled by 1.05: items
@@ -168,13 +176,24 @@ void BM_SolverInternalThreads(benchmark::State& state, msk::Scheme scheme) {
   state.counters["threads"] = o.threads;
 }
 BENCHMARK_CAPTURE(BM_SolverInternalThreads, gauss_seidel, msk::Scheme::GaussSeidel)
-    ->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_SolverInternalThreads, coloured, msk::Scheme::ColouredGaussSeidel)
-    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_SolverInternalThreads, jacobi, msk::Scheme::Jacobi)
-    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_SolverInternalThreads, xpbd, msk::Scheme::Xpbd)
-    ->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // The same set through the batch kernel (simplex_batch.h): rows as a struct of arrays, on a packed copy of the
 // particles, sixteen rows at a time with AVX-512 or eight with AVX2 (the widest the processor has, chosen at run time),
@@ -199,12 +218,16 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, msk::BatchLanes l
   int skipped = 0;
   {  // one untimed sweep: the batch allocates its fused Jacobi buffers on first use
     msk::Points q = p;
-    if (mode == BatchMode::Coloured) batch.colouredSweep(q, w);
-    else batch.jacobiSweep(q, w, 1.5);
+    if (mode == BatchMode::Coloured)
+      batch.colouredSweep(q, w);
+    else
+      batch.jacobiSweep(q, w, 1.5);
   }
   for (auto _ : state) {
     switch (mode) {
-      case BatchMode::Jacobi: skipped = batch.jacobiSweep(p, w, 1.5); break;
+      case BatchMode::Jacobi:
+        skipped = batch.jacobiSweep(p, w, 1.5);
+        break;
       case BatchMode::JacobiCounted:
         batch.loadRange(p, w, 0, n);
         skipped = batch.computeRange(0, n);
@@ -213,7 +236,9 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, msk::BatchLanes l
         batch.scaleRange(counts, 1.5, 0, n);
         batch.applyRange(p, 0, n);
         break;
-      case BatchMode::Coloured: skipped = batch.colouredSweep(p, w); break;
+      case BatchMode::Coloured:
+        skipped = batch.colouredSweep(p, w);
+        break;
     }
     benchmark::DoNotOptimize(p.data());
     benchmark::ClobberMemory();
@@ -225,25 +250,43 @@ void BM_BatchInternal(benchmark::State& state, BatchMode mode, msk::BatchLanes l
   finish(state, n, n);
 }
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi, BatchMode::Jacobi, msk::BatchLanes::Avx512)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_counted, BatchMode::JacobiCounted, msk::BatchLanes::Avx512)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, coloured, BatchMode::Coloured, msk::BatchLanes::Avx512)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_mesh_order, BatchMode::Jacobi, msk::BatchLanes::Avx512,
                   msk::BatchOrder::Mesh)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, coloured_mesh_order, BatchMode::Coloured, msk::BatchLanes::Avx512,
                   msk::BatchOrder::Mesh)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_avx2, BatchMode::Jacobi, msk::BatchLanes::Avx2)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, coloured_avx2, BatchMode::Coloured, msk::BatchLanes::Avx2)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, jacobi_sse2, BatchMode::Jacobi, msk::BatchLanes::Sse2)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 BENCHMARK_CAPTURE(BM_BatchInternal, coloured_sse2, BatchMode::Coloured, msk::BatchLanes::Sse2)
-    ->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
+    ->DenseRange(kMinLevel, kMaxLevel)
+    ->Unit(benchmark::kMicrosecond)
+    ->Complexity();
 
 // Image target constraints (one per vertex, weight 1).
 void BM_ImageTargets(benchmark::State& state) {
@@ -365,10 +408,10 @@ void BM_Radial(benchmark::State& state) {
 }
 BENCHMARK(BM_Radial)->DenseRange(kMinLevel, kMaxLevel)->Unit(benchmark::kMicrosecond)->Complexity();
 
-
 // 3-simplex internal constraints of a volume model (tets and ghosts constrained), cube block of n³ cells, 2 mm.
 void BM_VolumeSimplex(benchmark::State& state) {
-  const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(static_cast<int>(state.range(0)), 2.0));
+  const msk::VolumeSimplexMesh vm =
+      msk::volumeSimplexFromTets(msk::makeCubeTets(static_cast<int>(state.range(0)), 2.0));
   msk::VolumeSimplexConstraints c(vm, 0.5, msk::VolumeBoundary::Constrained);
   const int n = vm.vertexCount();
   msk::Points p = perturbed(vm.simplex.positions, 0.1, 5);

@@ -75,13 +75,15 @@ double processPeakRssMiB() {
 
 SceneBenchFigures runSceneBench(const SceneBenchOptions& opts, const ProgressFn& progress) {
   if (opts.structures != 4 && opts.structures != kMultiPhantomStructures)
-    throw ParameterError("--structures", std::to_string(opts.structures),
-                         "must be " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs) or 4 (thigh)");
+    throw ParameterError(
+        "--structures", std::to_string(opts.structures),
+        "must be " + std::to_string(kMultiPhantomStructures) + " (thighs and lower legs) or 4 (thigh)");
   SceneBenchFigures f;
   f.options = opts;
   const Clock::time_point start = Clock::now();
   const double cpuStart = processCpuSeconds();
-  const Phantom ph = opts.structures == 4 ? makePhantom(opts.phantom, progress) : makeMultiPhantom(opts.phantom, progress);
+  const Phantom ph =
+      opts.structures == 4 ? makePhantom(opts.phantom, progress) : makeMultiPhantom(opts.phantom, progress);
   f.generationSeconds = secondsSince(start);
   f.generationCpu = processCpuSeconds() - cpuStart;
   f.scene = phantomScene(ph);
@@ -119,9 +121,11 @@ void printSceneBench(const SceneBenchFigures& f) {
   const Grid& g = f.grid;
   std::printf("scene: %zu objects, %zu collision pairs, grid %dx%dx%d (%.2f Mvoxels) at %.2fx%.2fx%.2f mm, seed %u\n",
               f.scene.objects.size(), f.scene.collisions.size(), g.dims[0], g.dims[1], g.dims[2],
-              static_cast<double>(g.voxelCount()) * 1e-6, g.spacing[0], g.spacing[1], g.spacing[2], f.options.phantom.seed);
+              static_cast<double>(g.voxelCount()) * 1e-6, g.spacing[0], g.spacing[1], g.spacing[2],
+              f.options.phantom.seed);
   std::printf("quality %s: %d levels, %zu simplex vertices at the finest level, collisions %s\n",
-              qualityName(f.options.segment.evolution.quality), f.result.settings.levels, f.simplexVertices, f.options.segment.collision.enabled ? "on" : "off");
+              qualityName(f.options.segment.evolution.quality), f.result.settings.levels, f.simplexVertices,
+              f.options.segment.collision.enabled ? "on" : "off");
   std::printf("\ntime per stage (s, wall)\n");
   std::printf("  %-22s %8.2f  (cpu %.2f)\n", "generation", f.generationSeconds, f.generationCpu);
   // The pipeline's stages in run order (collision detection is timed inside the evolution), then any others.
@@ -139,8 +143,10 @@ void printSceneBench(const SceneBenchFigures& f) {
   std::printf("  %-22s %8.2f\n", "scoring", f.scoreSeconds);
   std::printf("  %-22s %8.2f  (generation + segmentation, wall)\n", "whole", f.generationSeconds + f.segmentSeconds);
   std::printf("built: %d image scales, %d directed collision sets; output separation: %d sweeps, %ld corrections\n",
-              f.result.featureScalesBuilt, f.result.collisionSetsBuilt, f.result.separationSweeps, f.result.separationCorrections);
-  std::printf("\nprojection time per constraint family (s, wall; a stacked solver's time once, per-object times summed)\n");
+              f.result.featureScalesBuilt, f.result.collisionSetsBuilt, f.result.separationSweeps,
+              f.result.separationCorrections);
+  std::printf(
+      "\nprojection time per constraint family (s, wall; a stacked solver's time once, per-object times summed)\n");
   for (const auto& [family, s] : f.secondsPerFamily) std::printf("  %-22s %8.2f\n", family.c_str(), s);
   std::printf("\npeak memory (RSS): %.0f MiB\n", f.peakRssMiB);
   std::printf("\n%-26s %5s  %6s  %8s  %9s  %8s\n", "object", "label", "Dice", "ASSD mm", "mesh ASSD", "tmpl Dice");

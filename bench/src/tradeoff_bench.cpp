@@ -115,12 +115,13 @@ std::vector<std::string> tradeoffSchemes() {
 std::vector<TradeoffConfig> tradeoffConfigs(const std::vector<std::string>& schemes,
                                             const std::vector<std::string>& presets) {
   // The schemes on the balanced schedule (2 levels x 50 steps), each at the substeps x iterations it needs.
-  const std::vector<TradeoffConfig> all = {{"gauss-seidel 1x1", "gauss-seidel", "balanced", 1, 1, false},
-                                           {"coloured-gauss-seidel 1x1", "coloured-gauss-seidel", "balanced", 1, 1, false},
-                                           {"jacobi 1x2", "jacobi", "balanced", 1, 2, false},
-                                           {"xpbd 2x2", "xpbd", "balanced", 2, 2, false},
-                                           {"explicit 4x1", "explicit", "balanced", 4, 1, false},
-                                           {"implicit 1x1", "implicit", "balanced", 1, 1, false}};
+  const std::vector<TradeoffConfig> all = {
+      {"gauss-seidel 1x1", "gauss-seidel", "balanced", 1, 1, false},
+      {"coloured-gauss-seidel 1x1", "coloured-gauss-seidel", "balanced", 1, 1, false},
+      {"jacobi 1x2", "jacobi", "balanced", 1, 2, false},
+      {"xpbd 2x2", "xpbd", "balanced", 2, 2, false},
+      {"explicit 4x1", "explicit", "balanced", 4, 1, false},
+      {"implicit 1x1", "implicit", "balanced", 1, 1, false}};
   std::vector<TradeoffConfig> configs;
   for (const std::string& s : schemes) {
     if (s == "none") continue;
@@ -165,8 +166,7 @@ TradeoffFigures runTradeoffBench(int phantoms, uint32_t firstSeed, int threads,
                      "tradeoff:   %-28s %6.2f s (features %.2f, evolution %.2f; cpu %.2f)  %4d steps  Dice %.4f  "
                      "ASSD %.3f mm  peak %.0f MiB\n",
                      configs[c].name.c_str(), row.run.seconds, row.run.featureSeconds, row.run.evolutionSeconds,
-                     row.run.cpuSeconds,
-                     row.run.steps, row.run.dice, row.run.assdMm, row.peakRssMiB);
+                     row.run.cpuSeconds, row.run.steps, row.run.dice, row.run.assdMm, row.peakRssMiB);
       else
         std::fprintf(stderr, "tradeoff:   %-28s failed: %s\n", configs[c].name.c_str(), row.run.error);
       f.rows.push_back(row);
@@ -207,10 +207,11 @@ TradeoffFigures runTradeoffBench(int phantoms, uint32_t firstSeed, int threads,
 
 void printTradeoffBench(const TradeoffFigures& f) {
   // Table.
-  std::printf("speed/accuracy trade: femur of %d thigh phantom(s) (seeds %u..%u), from the mean template; %.0f s in all\n",
-              f.phantoms, f.firstSeed, f.firstSeed + static_cast<uint32_t>(f.phantoms) - 1, f.seconds);
-  std::printf("%-26s %-21s %3s %5s %7s %3s %4s %9s %7s %7s %8s %8s %8s\n", "setting", "scheme", "lev", "steps", "tol mm",
-              "sub", "iter", "steps run", "s/run", "cpu s", "Dice", "ASSD mm", "peak MiB");
+  std::printf(
+      "speed/accuracy trade: femur of %d thigh phantom(s) (seeds %u..%u), from the mean template; %.0f s in all\n",
+      f.phantoms, f.firstSeed, f.firstSeed + static_cast<uint32_t>(f.phantoms) - 1, f.seconds);
+  std::printf("%-26s %-21s %3s %5s %7s %3s %4s %9s %7s %7s %8s %8s %8s\n", "setting", "scheme", "lev", "steps",
+              "tol mm", "sub", "iter", "steps run", "s/run", "cpu s", "Dice", "ASSD mm", "peak MiB");
   for (const TradeoffMean& m : f.means) {
     if (m.ok == 0) {
       std::printf("%-26s failed on every phantom\n", m.config.name.c_str());
@@ -231,10 +232,10 @@ void printTradeoffBench(const TradeoffFigures& f) {
   const TradeoffMean* accurate = find("preset accurate");
   if (fast && accurate) {
     const double ratio = accurate->cpu / fast->cpu, wallRatio = accurate->seconds / fast->seconds;
-    std::printf("check fast >= 5x faster than accurate (CPU time): %s (%.2f s vs %.2f s, %.1fx; wall %.2f s vs %.2f s, "
-                "%.1fx)\n",
-                ratio >= 5 ? "holds" : "NOT MET", fast->cpu, accurate->cpu, ratio, fast->seconds, accurate->seconds,
-                wallRatio);
+    std::printf(
+        "check fast >= 5x faster than accurate (CPU time): %s (%.2f s vs %.2f s, %.1fx; wall %.2f s vs %.2f s, "
+        "%.1fx)\n",
+        ratio >= 5 ? "holds" : "NOT MET", fast->cpu, accurate->cpu, ratio, fast->seconds, accurate->seconds, wallRatio);
   } else {
     std::printf("check fast >= 5x faster than accurate: not run (needs both presets)\n");
   }
@@ -244,36 +245,40 @@ void printTradeoffBench(const TradeoffFigures& f) {
     for (const TradeoffMean& m : f.means)
       if (m.ok > 0 && &m != accurate && (!best || m.assd < best->assd)) best = &m;
     if (best)
-      std::printf("check accurate at least as accurate as every row (ASSD): %s (accurate %.3f mm Dice %.4f; best other "
-                  "%s %.3f mm Dice %.4f)\n",
-                  accurate->assd <= best->assd ? "holds" : "NOT MET", accurate->assd, accurate->dice,
-                  best->config.name.c_str(), best->assd, best->dice);
+      std::printf(
+          "check accurate at least as accurate as every row (ASSD): %s (accurate %.3f mm Dice %.4f; best other "
+          "%s %.3f mm Dice %.4f)\n",
+          accurate->assd <= best->assd ? "holds" : "NOT MET", accurate->assd, accurate->dice, best->config.name.c_str(),
+          best->assd, best->dice);
   }
   // Accuracy from fast to accurate: on the mean over the phantoms, and for each step per phantom (paired:
   // the mean gain in ASSD, its t statistic, and on how many phantoms the slower preset is the more accurate).
   const TradeoffMean* balanced = find("preset balanced");
   if (fast && balanced && accurate) {
     const bool rises = fast->assd > balanced->assd && balanced->assd > accurate->assd;
-    std::printf("check accuracy rises fast -> balanced -> accurate (mean ASSD): %s (%.3f -> %.3f -> %.3f mm; Dice "
-                "%.4f -> %.4f -> %.4f)\n",
-                rises ? "holds" : "NOT MET", fast->assd, balanced->assd, accurate->assd, fast->dice, balanced->dice,
-                accurate->dice);
+    std::printf(
+        "check accuracy rises fast -> balanced -> accurate (mean ASSD): %s (%.3f -> %.3f -> %.3f mm; Dice "
+        "%.4f -> %.4f -> %.4f)\n",
+        rises ? "holds" : "NOT MET", fast->assd, balanced->assd, accurate->assd, fast->dice, balanced->dice,
+        accurate->dice);
     const size_t nc = f.configs.size();
     for (const auto& [a, b] : {std::pair{fast, balanced}, std::pair{balanced, accurate}, std::pair{fast, accurate}}) {
       const size_t ca = static_cast<size_t>(a - f.means.data()), cb = static_cast<size_t>(b - f.means.data());
       std::vector<double> gain;  // ASSD of a minus ASSD of b, per phantom where both ran
       for (size_t k = 0; k + nc <= f.rows.size(); k += nc)
-        if (f.rows[k + ca].run.ok && f.rows[k + cb].run.ok) gain.push_back(f.rows[k + ca].run.assdMm - f.rows[k + cb].run.assdMm);
+        if (f.rows[k + ca].run.ok && f.rows[k + cb].run.ok)
+          gain.push_back(f.rows[k + ca].run.assdMm - f.rows[k + cb].run.assdMm);
       const double n = static_cast<double>(gain.size());
       double mean = 0, var = 0;
       for (double g : gain) mean += g / n;
       for (double g : gain) var += (g - mean) * (g - mean) / std::max(1.0, n - 1);
       const double se = std::sqrt(var / std::max(1.0, n));
-      std::printf("  per phantom, %s -> %s: ASSD %.3f mm lower on average (paired t %.1f), lower on %ld of %zu "
-                  "(largest rise %.3f mm)\n",
-                  a->config.preset.c_str(), b->config.preset.c_str(), mean, se > 0 ? mean / se : 0.0,
-                  std::count_if(gain.begin(), gain.end(), [](double g) { return g > 0; }), gain.size(),
-                  gain.empty() ? 0.0 : std::max(0.0, -*std::min_element(gain.begin(), gain.end())));
+      std::printf(
+          "  per phantom, %s -> %s: ASSD %.3f mm lower on average (paired t %.1f), lower on %ld of %zu "
+          "(largest rise %.3f mm)\n",
+          a->config.preset.c_str(), b->config.preset.c_str(), mean, se > 0 ? mean / se : 0.0,
+          std::count_if(gain.begin(), gain.end(), [](double g) { return g > 0; }), gain.size(),
+          gain.empty() ? 0.0 : std::max(0.0, -*std::min_element(gain.begin(), gain.end())));
     }
   }
   std::fflush(stdout);
@@ -287,8 +292,9 @@ void writeTradeoffBench(const std::string& dir, const TradeoffFigures& f) {
     const std::string csv = dir + "/tradeoff.csv";
     std::ofstream file(csv);
     if (!file) throw IoError(csv, "cannot write");
-    file << "phantom,seed,setting,scheme,preset,levels,max_steps_per_level,tolerance_mm,substeps,iterations,steps,seconds,"
-         "cpu_seconds,dice,assd_mm,peak_rss_mib,ok\n";
+    file << "phantom,seed,setting,scheme,preset,levels,max_steps_per_level,tolerance_mm,substeps,iterations,steps,"
+            "seconds,"
+            "cpu_seconds,dice,assd_mm,peak_rss_mib,ok\n";
     char line[512];
     for (const TradeoffRow& r : f.rows) {
       std::snprintf(line, sizeof line, "%u,%u,%s,%s,%s,%d,%d,%.4f,%d,%d,%d,%.3f,%.3f,%.4f,%.4f,%.1f,%d\n", r.seed,

@@ -1,12 +1,12 @@
 #include "msk/core/atomic_file.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <filesystem>
 #include <system_error>
-
-#include <unistd.h>
 
 #include "msk/core/error.h"
 

@@ -1,7 +1,6 @@
 #include "msk/core/collision_constraint.h"
 
 #include <Eigen/Dense>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -39,7 +38,8 @@ bool collisionCorrection(const Eigen::Vector3d& p, const Eigen::Vector3d pi[3], 
 
 namespace {
 void checkContactParameters(double gapMm, double proximityMm, double friction) {
-  if (!(gapMm >= 0) || !std::isfinite(gapMm)) throw ParameterError("collision gap", std::to_string(gapMm), "must be >= 0 mm");
+  if (!(gapMm >= 0) || !std::isfinite(gapMm))
+    throw ParameterError("collision gap", std::to_string(gapMm), "must be >= 0 mm");
   if (!(proximityMm > 0) || !std::isfinite(proximityMm))
     throw ParameterError("collision proximity", std::to_string(proximityMm), "must be > 0 mm");
   checkUnitInterval("collision friction", friction);
@@ -49,8 +49,14 @@ void checkContactParameters(double gapMm, double proximityMm, double friction) {
 CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::shared_ptr<CollisionSurface> surfaceB,
                                            double gapMm, double proximityMm, double friction,
                                            const CollisionResponse& response)
-    : firstA_(firstA), count_(vertexCount), surface_(std::move(surfaceB)), ownsSurface_(false), gap_(gapMm),
-      proximity_(proximityMm), friction_(friction), response_(response),
+    : firstA_(firstA),
+      count_(vertexCount),
+      surface_(std::move(surfaceB)),
+      ownsSurface_(false),
+      gap_(gapMm),
+      proximity_(proximityMm),
+      friction_(friction),
+      response_(response),
       dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()) {
   checkContactParameters(gapMm, proximityMm, friction);
   MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
@@ -197,7 +203,9 @@ void CollisionConstraints::appendRows(CollisionMode mode, const Points& x, const
     ContactRow r;
     bool any = false;
     switch (mode) {
-      case CollisionMode::Position: any = contactPositionChange(pc, c.pc0, c.normal, prm, dref, r.change); break;
+      case CollisionMode::Position:
+        any = contactPositionChange(pc, c.pc0, c.normal, prm, dref, r.change);
+        break;
       case CollisionMode::Velocity:
         any = contactVelocityChange(pc, relative(c, v), c.normal, prm, dref, h, r.change);
         break;
@@ -262,7 +270,8 @@ void GlobalCollisionResolution::solve(CollisionMode mode, const Points& x, const
     for (const CollisionConstraints* m : members_) m->appendRows(mode, x, v, h, rows_);
     if (rows_.empty()) break;
     const GlobalContactReport r = solveContactsGlobal(rows_, w, q, opts_);
-    if (pass == 0) report_ = r;
+    if (pass == 0)
+      report_ = r;
     else {
       report_.iterations += r.iterations;
       report_.dropped += r.dropped;
@@ -272,7 +281,8 @@ void GlobalCollisionResolution::solve(CollisionMode mode, const Points& x, const
 }
 
 void GlobalCollisionResolution::project(Points& p, const Eigen::VectorXd& w) {
-  if (mode_ == CollisionMode::Position) projectPositions(p, w);
+  if (mode_ == CollisionMode::Position)
+    projectPositions(p, w);
   else
     for (CollisionConstraints* m : members_) m->project(p, w);
 }
@@ -281,7 +291,8 @@ void GlobalCollisionResolution::projectPositions(Points& p, const Eigen::VectorX
   solve(CollisionMode::Position, p, p, 1.0, w, p);
 }
 
-void GlobalCollisionResolution::correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {
+void GlobalCollisionResolution::correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w,
+                                                        double h) {
   if (mode_ == CollisionMode::Acceleration) solve(mode_, x, v, h, w, v);
 }
 

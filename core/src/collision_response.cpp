@@ -9,26 +9,34 @@ namespace msk {
 
 const char* collisionModeName(CollisionMode m) {
   switch (m) {
-    case CollisionMode::Position: return "position";
-    case CollisionMode::Velocity: return "velocity";
-    case CollisionMode::Acceleration: return "acceleration";
+    case CollisionMode::Position:
+      return "position";
+    case CollisionMode::Velocity:
+      return "velocity";
+    case CollisionMode::Acceleration:
+      return "acceleration";
   }
   return "unknown";
 }
 
 const char* collisionTargetName(CollisionTarget t) {
   switch (t) {
-    case CollisionTarget::Spring: return "spring";
-    case CollisionTarget::Reaction: return "reaction";
-    case CollisionTarget::Reference: return "reference";
+    case CollisionTarget::Spring:
+      return "spring";
+    case CollisionTarget::Reaction:
+      return "reaction";
+    case CollisionTarget::Reference:
+      return "reference";
   }
   return "unknown";
 }
 
 const char* collisionResolutionName(CollisionResolution r) {
   switch (r) {
-    case CollisionResolution::Sequential: return "sequential";
-    case CollisionResolution::Global: return "global";
+    case CollisionResolution::Sequential:
+      return "sequential";
+    case CollisionResolution::Global:
+      return "global";
   }
   return "unknown";
 }

@@ -1,11 +1,10 @@
 #include "msk/core/collision_surface.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"

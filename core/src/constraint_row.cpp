@@ -1,7 +1,6 @@
 #include "msk/core/constraint_row.h"
 
 #include <Eigen/Dense>
-
 #include <cmath>
 
 namespace msk {

@@ -66,7 +66,8 @@ Colouring colourConstraints(int count, int maxParticles, const std::function<int
   for (int k = 0; k < colours; ++k) out.start[static_cast<size_t>(k) + 1] += out.start[static_cast<size_t>(k)];
   out.order.resize(static_cast<size_t>(count));
   std::vector<int> fill(out.start.begin(), out.start.end() - 1);
-  for (int c = 0; c < count; ++c) out.order[static_cast<size_t>(fill[static_cast<size_t>(colour[static_cast<size_t>(c)])]++)] = c;
+  for (int c = 0; c < count; ++c)
+    out.order[static_cast<size_t>(fill[static_cast<size_t>(colour[static_cast<size_t>(c)])]++)] = c;
   return out;
 }
 

@@ -1,13 +1,12 @@
 #include "msk/core/medial_axis.h"
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <tuple>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
-#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 
@@ -417,8 +416,8 @@ Points GeneralisedCylinder::axisDrive(const Points& d) const {
   Points sum = Points::Zero(na, 3);
   for (int v = 0; v < nv; ++v)
     for (int k = 0; k < 2; ++k) sum.row(att_.axisIndex(v, k)) += att_.weights(v, k) * d.row(v);
-  for (int j = 0; j < na; ++j) sum.row(j) = carried_[j] > 0 ? Eigen::RowVector3d(sum.row(j) / carried_[j])
-                                                             : Eigen::RowVector3d::Zero();
+  for (int j = 0; j < na; ++j)
+    sum.row(j) = carried_[j] > 0 ? Eigen::RowVector3d(sum.row(j) / carried_[j]) : Eigen::RowVector3d::Zero();
   return sum;
 }
 

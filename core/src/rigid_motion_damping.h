@@ -1,14 +1,14 @@
 #pragma once
-/// The momentum-preserving damping of the solvers (PBD survey §4.1.2, Müller et al. 2007: each velocity is pulled toward
-/// the rigid-body velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum unchanged)
-/// split into its sums and its application, and the pass that closes a solver step (velocity update, finiteness, largest displacement, the damping's sums), so
-/// that the solvers make as few passes over their particle arrays as possible (private to msk_core). The loops take
-/// kLanes rows at a time (Lanes; lanes of the last block beyond the rows are zero), each lane summing its own rows:
-/// the order of the additions depends on the row count only, never on the data or the thread count.
+/// The momentum-preserving damping of the solvers (PBD survey §4.1.2, Müller et al. 2007: each velocity is pulled
+/// toward the rigid-body velocity field vcm + ω × r of the whole system, which leaves linear and angular momentum
+/// unchanged) split into its sums and its application, and the pass that closes a solver step (velocity update,
+/// finiteness, largest displacement, the damping's sums), so that the solvers make as few passes over their particle
+/// arrays as possible (private to msk_core). The loops take kLanes rows at a time (Lanes; lanes of the last block
+/// beyond the rows are zero), each lane summing its own rows: the order of the additions depends on the row count only,
+/// never on the data or the thread count.
+#include <Eigen/Core>
 #include <cmath>
 #include <type_traits>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 
@@ -196,9 +196,9 @@ bool closeStep(const Points& x1, const Points& xBefore, Points& vel, double h, c
 
 /// What closeStepAndMoments() found.
 struct ClosedStep {
-  bool finite = false;    ///< every new position and velocity is finite
-  double maxDispMm = 0;   ///< largest |x1 − x0|, mm
-  bool moving = false;    ///< `motion` holds the damping's rigid motion (damping asked for, some free mass)
+  bool finite = false;   ///< every new position and velocity is finite
+  double maxDispMm = 0;  ///< largest |x1 − x0|, mm
+  bool moving = false;   ///< `motion` holds the damping's rigid motion (damping asked for, some free mass)
   RigidMotion motion;
 };
 
@@ -215,8 +215,8 @@ ClosedStep closeStepAndMoments(const Points& x1, const Points& xBefore, Points& 
   return out;
 }
 
-/// The application pass of the momentum-preserving damping: v += damping (vcm + ω × (x − xcm) − v) on the free particles
-/// (flags of `weights`; none when `motion` is null), then v *= 1 − drag on every particle (drag > 0).
+/// The application pass of the momentum-preserving damping: v += damping (vcm + ω × (x − xcm) − v) on the free
+/// particles (flags of `weights`; none when `motion` is null), then v *= 1 − drag on every particle (drag > 0).
 template <class Weights>
 void applyRigidDamping(const RigidMotion* motion, const Points& x, const Weights& weights, double damping, double drag,
                        Points& v) {

@@ -1,7 +1,6 @@
 #include "msk/core/shape_matching_constraint.h"
 
 #include <Eigen/Dense>
-
 #include <algorithm>
 
 #include "msk/core/error.h"

@@ -1,13 +1,12 @@
 #include "msk/core/simplex_batch.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-
-#include <Eigen/Dense>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -26,9 +25,9 @@
 #include <sys/mman.h>
 #endif
 
-#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
+#include "msk/core/simplex_internal_constraint.h"
 
 namespace msk {
 
@@ -128,23 +127,49 @@ inline void storeu(D2 a, double* out) {
   out[0] = a.v[0];
   out[1] = a.v[1];
 }
-inline D2 operator+(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x + y; }); }
-inline D2 operator-(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x - y; }); }
-inline D2 operator*(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x * y; }); }
-inline D2 operator/(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x / y; }); }
+inline D2 operator+(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return x + y; });
+}
+inline D2 operator-(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return x - y; });
+}
+inline D2 operator*(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return x * y; });
+}
+inline D2 operator/(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return x / y; });
+}
 inline D2 vsqrt(D2 a) { return {{std::sqrt(a.v[0]), std::sqrt(a.v[1])}}; }
-inline D2 vmax(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return x > y ? x : y; }); }
+inline D2 vmax(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return x > y ? x : y; });
+}
 inline D2 vabs(D2 a) { return {{std::fabs(a.v[0]), std::fabs(a.v[1])}}; }
-inline D2 gt(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x > y); }); }
-inline D2 lt(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x < y); }); }
-inline D2 ge(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x >= y); }); }
-inline D2 eq(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(x == y); }); }
-inline D2 notLe(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(!(x <= y)); }); }
-inline D2 operator&(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(isSet(x) && isSet(y)); }); }
-inline D2 operator|(D2 a, D2 b) { return map2(a, b, [](double x, double y) { return maskOf(isSet(x) || isSet(y)); }); }
+inline D2 gt(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(x > y); });
+}
+inline D2 lt(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(x < y); });
+}
+inline D2 ge(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(x >= y); });
+}
+inline D2 eq(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(x == y); });
+}
+inline D2 notLe(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(!(x <= y)); });
+}
+inline D2 operator&(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(isSet(x) && isSet(y)); });
+}
+inline D2 operator|(D2 a, D2 b) {
+  return map2(a, b, [](double x, double y) { return maskOf(isSet(x) || isSet(y)); });
+}
 inline D2 operator~(D2 m) { return {{maskOf(!isSet(m.v[0])), maskOf(!isSet(m.v[1]))}}; }
 inline D2 select(D2 m, D2 a, D2 b) { return {{isSet(m.v[0]) ? a.v[0] : b.v[0], isSet(m.v[1]) ? a.v[1] : b.v[1]}}; }
-inline D2 flipSign(D2 a, D2 s) { return map2(a, s, [](double x, double y) { return std::signbit(y) ? -x : x; }); }
+inline D2 flipSign(D2 a, D2 s) {
+  return map2(a, s, [](double x, double y) { return std::signbit(y) ? -x : x; });
+}
 inline int bits(D2 m) { return (isSet(m.v[0]) ? 1 : 0) | (isSet(m.v[1]) ? 2 : 0); }
 #endif
 
@@ -354,14 +379,16 @@ int unpackParticles(const double* pos, const int* place, double* x, double* y, d
 }
 }  // namespace lanes4
 
-
 namespace lanes8 {
 // Eight rows as two 4-lane (AVX2) packs in lockstep.
 namespace half = lanes4;
 using Half = lanes4::D4;
 constexpr int kHalfLanes = 4;
+// The pack of two halves (twin) comes before the kernel that runs on it.
+// clang-format off
 #include "simplex_batch_twin.inc"
 #include "simplex_batch_kernel.inc"
+// clang-format on
 }  // namespace lanes8
 #if defined(__clang__)
 #pragma clang attribute pop
@@ -426,9 +453,9 @@ inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
 inline D8 join(lanes4::D4 l, lanes4::D4 h) {
   return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)};
 }
-using lanes4::Q;
 using lanes4::keepW;
 using lanes4::loadQ;
+using lanes4::Q;
 using lanes4::splatQ;
 using lanes4::storeQ;
 /// The x, y, z, w packs of the particles idx[0..7] of `pos`: one 32-byte load per particle, two particles per
@@ -443,8 +470,8 @@ inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D
   const __m512d c = pair(idx[4], idx[6]), d = pair(idx[5], idx[7]);
   const __m512d t0 = _mm512_unpacklo_pd(a, b), t1 = _mm512_unpackhi_pd(a, b);  // x0 x1 z0 z1 x2 x3 z2 z3, y.. w..
   const __m512d t2 = _mm512_unpacklo_pd(c, d), t3 = _mm512_unpackhi_pd(c, d);  // the same of 4 .. 7
-  x.v = _mm512_shuffle_f64x2(t0, t2, 0x88);  // 128-bit lanes 0, 2 of t0, then of t2
-  z.v = _mm512_shuffle_f64x2(t0, t2, 0xDD);  // lanes 1, 3
+  x.v = _mm512_shuffle_f64x2(t0, t2, 0x88);                                    // 128-bit lanes 0, 2 of t0, then of t2
+  z.v = _mm512_shuffle_f64x2(t0, t2, 0xDD);                                    // lanes 1, 3
   y.v = _mm512_shuffle_f64x2(t1, t3, 0x88);
   w.v = _mm512_shuffle_f64x2(t1, t3, 0xDD);
 }
@@ -453,7 +480,7 @@ inline void loadPoints(const double* pos, const int* idx, D8& x, D8& y, D8& z, D
 inline void toQ4(D8 a, D8 b, D8 c, D8 d, Q* out) {
   const __m512d t0 = _mm512_unpacklo_pd(a.v, b.v), t1 = _mm512_unpackhi_pd(a.v, b.v);  // a0 b0 a2 b2 .., a1 b1 ..
   const __m512d t2 = _mm512_unpacklo_pd(c.v, d.v), t3 = _mm512_unpackhi_pd(c.v, d.v);  // c0 d0 c2 d2 .., c1 d1 ..
-  const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);  // 128-bit lanes 0 of t0, t2, then lanes 1
+  const __m512i first = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);     // 128-bit lanes 0 of t0, t2, then lanes 1
   const __m512i second = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);  // lanes 2, then 3
   const __m512d q02 = _mm512_permutex2var_pd(t0, first, t2), q46 = _mm512_permutex2var_pd(t0, second, t2);
   const __m512d q13 = _mm512_permutex2var_pd(t1, first, t3), q57 = _mm512_permutex2var_pd(t1, second, t3);
@@ -483,8 +510,11 @@ namespace lanes32 {
 namespace half = lanes16;
 using Half = lanes16::D8;
 constexpr int kHalfLanes = 8;
+// The pack of two halves (twin) comes before the kernel that runs on it.
+// clang-format off
 #include "simplex_batch_twin.inc"
 #include "simplex_batch_kernel.inc"
+// clang-format on
 }  // namespace lanes32
 #if defined(__clang__)
 #pragma clang attribute pop
@@ -502,8 +532,7 @@ bool avxAvailable() {
 /// Whether this processor (and its operating system) runs AVX-512 F, DQ and VL.
 bool avx512Available() {
   __builtin_cpu_init();
-  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
-         __builtin_cpu_supports("avx512vl");
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512vl");
 }
 #else
 bool avxAvailable() { return false; }
@@ -789,11 +818,10 @@ void SimplexInternalBatch::storeRange(Points& p, int begin, int end) const {
 }
 
 namespace {
-BatchArrays arraysOf(double* pos, const std::vector<int>& order, const std::vector<int>& n0,
-                     const std::vector<int>& n1, const std::vector<int>& n2, const std::vector<double>& e0,
-                     const std::vector<double>& e1, const std::vector<double>& e2, const std::vector<double>& hr) {
-  return BatchArrays{pos,       order.data(), n0.data(), n1.data(), n2.data(),
-                     e0.data(), e1.data(),    e2.data(), hr.data()};
+BatchArrays arraysOf(double* pos, const std::vector<int>& order, const std::vector<int>& n0, const std::vector<int>& n1,
+                     const std::vector<int>& n2, const std::vector<double>& e0, const std::vector<double>& e1,
+                     const std::vector<double>& e2, const std::vector<double>& hr) {
+  return BatchArrays{pos, order.data(), n0.data(), n1.data(), n2.data(), e0.data(), e1.data(), e2.data(), hr.data()};
 }
 }  // namespace
 
@@ -864,8 +892,7 @@ void SimplexInternalBatch::addCounts(const Eigen::VectorXd& w, Eigen::VectorXi& 
     const int v = vertex[i];
     if (!(wv[v] > 0)) continue;
     int k = 0;
-    for (int e = revStart_[static_cast<size_t>(i)]; e < revStart_[static_cast<size_t>(i) + 1]; ++e)
-      k += kept[row[e]];
+    for (int e = revStart_[static_cast<size_t>(i)]; e < revStart_[static_cast<size_t>(i) + 1]; ++e) k += kept[row[e]];
     cnt[v] += k;
   }
 }
@@ -980,9 +1007,12 @@ int SimplexInternalBatch::jacobiEqualSharesPacked(double omega) {
       const JacobiOut o{ring + 8 * static_cast<std::ptrdiff_t>(c % 4) * chunk, kept_.data(), lo};
       int skipped;
 #if MSK_BATCH_AVX
-      if (lanes == BatchLanes::Avx512) skipped = lanes32::computeRows(a, gamma_, lo, hi, o);
-      else if (lanes == BatchLanes::Avx2) skipped = lanes8::computeRows(a, gamma_, lo, hi, o);
-      else skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
+      if (lanes == BatchLanes::Avx512)
+        skipped = lanes32::computeRows(a, gamma_, lo, hi, o);
+      else if (lanes == BatchLanes::Avx2)
+        skipped = lanes8::computeRows(a, gamma_, lo, hi, o);
+      else
+        skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
 #else
       skipped = lanes2::computeRows(a, gamma_, lo, hi, o);
 #endif
@@ -991,9 +1021,12 @@ int SimplexInternalBatch::jacobiEqualSharesPacked(double omega) {
     if (c > 0) {  // the particles of chunk c − 1: their rows lie in chunks c − 2 .. c
       const int lo = (c - 1) * chunk, hi = std::min(n, lo + chunk);
 #if MSK_BATCH_AVX
-      if (lanes == BatchLanes::Avx512) lanes32::applyParticlesPacked(view, src, dst, lo, hi);
-      else if (lanes == BatchLanes::Avx2) lanes8::applyParticlesPacked(view, src, dst, lo, hi);
-      else lanes2::applyParticlesPacked(view, src, dst, lo, hi);
+      if (lanes == BatchLanes::Avx512)
+        lanes32::applyParticlesPacked(view, src, dst, lo, hi);
+      else if (lanes == BatchLanes::Avx2)
+        lanes8::applyParticlesPacked(view, src, dst, lo, hi);
+      else
+        lanes2::applyParticlesPacked(view, src, dst, lo, hi);
 #else
       lanes2::applyParticlesPacked(view, src, dst, lo, hi);
 #endif

@@ -1,7 +1,6 @@
 #include "msk/core/simplex_internal_constraint.h"
 
 #include <Eigen/Dense>
-
 #include <algorithm>
 #include <cmath>
 

@@ -1,13 +1,12 @@
 #include "msk/core/simplex_mesh.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <Eigen/SparseCholesky>
-#include <Eigen/SparseCore>
 
 #include "msk/core/error.h"
 #include "msk/core/triangle_grid.h"

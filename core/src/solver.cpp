@@ -1,5 +1,6 @@
 #include "msk/core/solver.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -7,8 +8,6 @@
 #include <limits>
 #include <thread>
 #include <unordered_map>
-
-#include <Eigen/Dense>
 
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
@@ -23,19 +22,25 @@ namespace msk {
 
 std::string schemeName(Scheme scheme) {
   switch (scheme) {
-    case Scheme::GaussSeidel: return "gauss-seidel";
-    case Scheme::ColouredGaussSeidel: return "coloured-gauss-seidel";
-    case Scheme::Jacobi: return "jacobi";
-    case Scheme::Xpbd: return "xpbd";
-    case Scheme::Explicit: return "explicit";
-    case Scheme::Implicit: return "implicit";
+    case Scheme::GaussSeidel:
+      return "gauss-seidel";
+    case Scheme::ColouredGaussSeidel:
+      return "coloured-gauss-seidel";
+    case Scheme::Jacobi:
+      return "jacobi";
+    case Scheme::Xpbd:
+      return "xpbd";
+    case Scheme::Explicit:
+      return "explicit";
+    case Scheme::Implicit:
+      return "implicit";
   }
   return "unknown";
 }
 
 std::vector<Scheme> allSchemes() {
-  return {Scheme::GaussSeidel, Scheme::ColouredGaussSeidel, Scheme::Jacobi,
-          Scheme::Xpbd,        Scheme::Explicit,            Scheme::Implicit};
+  return {Scheme::GaussSeidel, Scheme::ColouredGaussSeidel, Scheme::Jacobi, Scheme::Xpbd, Scheme::Explicit,
+          Scheme::Implicit};
 }
 
 Scheme parseScheme(const std::string& name) {
@@ -74,12 +79,12 @@ struct SetCache {
   std::uint64_t uid = 0, layout = 0;
   int rows = -1, first = -1;
   Colouring colouring;
-  std::vector<ConstraintRow> row;       ///< rows of the current pass (Jacobi, force-based)
-  std::vector<char> active;             ///< row r evaluated and in use
-  std::vector<Eigen::Vector3d> lambda;  ///< XPBD multipliers; Jacobi Δλ
-  std::vector<double> alpha, beta;      ///< force-based: stiffness α and damping β of each row
-  std::vector<Eigen::Vector3d> dir;     ///< force-based: unit force direction u of each row
-  Points diff;                          ///< sets without rows: correction of a projection on a copy
+  std::vector<ConstraintRow> row;                  ///< rows of the current pass (Jacobi, force-based)
+  std::vector<char> active;                        ///< row r evaluated and in use
+  std::vector<Eigen::Vector3d> lambda;             ///< XPBD multipliers; Jacobi Δλ
+  std::vector<double> alpha, beta;                 ///< force-based: stiffness α and damping β of each row
+  std::vector<Eigen::Vector3d> dir;                ///< force-based: unit force direction u of each row
+  Points diff;                                     ///< sets without rows: correction of a projection on a copy
   const SimplexInternalBatch* sharesOf = nullptr;  ///< batch whose equalShares() `equalShares` holds (null: none)
   std::uint64_t sharesLayout = 0;                  ///< ... at this row layout
   bool equalShares = false;
@@ -239,7 +244,7 @@ struct Solver::Impl {
     if (!loneBatch) counts.setZero(n);
     SimplexInternalBatch* equalShares = nullptr;  // the batch applied with equal shares ω/4 (no counts)
     SimplexInternalBatch* fused = nullptr;        // ... already applied (one thread: computed and applied in one pass)
-    if (sets.size() != 1) storeResident();  // only a set iterated alone keeps its packed copy between iterations
+    if (sets.size() != 1) storeResident();        // only a set iterated alone keeps its packed copy between iterations
     for (ConstraintSet* s : sets) {
       const auto t0 = Clock::now();
       if (SimplexInternalBatch* b = batchOf(*s)) {
@@ -489,8 +494,9 @@ struct Solver::Impl {
   void applySystem(const std::vector<ConstraintSet*>& sets, const Points& y, Points& out, double h) {
     const int n = static_cast<int>(x.rows());
     out.resize(n, 3);
-    for (int i = 0; i < n; ++i) out.row(i) = w[i] > 0 ? ((1.0 / w[i] + h * h * fallbackK[i]) * y.row(i)).eval()
-                                                      : Eigen::RowVector3d::Zero().eval();
+    for (int i = 0; i < n; ++i)
+      out.row(i) =
+          w[i] > 0 ? ((1.0 / w[i] + h * h * fallbackK[i]) * y.row(i)).eval() : Eigen::RowVector3d::Zero().eval();
     for (ConstraintSet* s : sets) {
       if (s->rowCount() <= 0) continue;
       const SetCache& c = cacheFor(*s);
@@ -637,8 +643,10 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
   m.backupValid = false;
   bool swapped = false;  // single: x holds the new positions, p the old ones
   auto restore = [&] {   // the state before the step
-    if (!single) m.x.swap(m.x0);
-    else if (swapped) m.x.swap(m.p);
+    if (!single)
+      m.x.swap(m.x0);
+    else if (swapped)
+      m.x.swap(m.p);
     m.v.swap(m.v0);
   };
   auto fail = [&] {
@@ -652,9 +660,15 @@ double Solver::step(const std::vector<ConstraintSet*>& sets) {
     for (int s = 0; s < m.opts.substeps; ++s) {
       const bool velocities = s + 1 < m.opts.substeps;  // the last substep's velocity pass follows the damping
       switch (m.opts.scheme) {
-        case Scheme::Explicit: m.explicitSubstep(sets, h, velocities); break;
-        case Scheme::Implicit: m.implicitSubstep(sets, h, velocities); break;
-        default: m.positionSubstep(sets, h, velocities, !single); break;
+        case Scheme::Explicit:
+          m.explicitSubstep(sets, h, velocities);
+          break;
+        case Scheme::Implicit:
+          m.implicitSubstep(sets, h, velocities);
+          break;
+        default:
+          m.positionSubstep(sets, h, velocities, !single);
+          break;
       }
     }
   } catch (...) {  // a set's exception: v may hold the prediction

@@ -10,7 +10,6 @@
 #include <thread>
 
 #include "msk/core/collision_surface.h"
-
 #include "msk/core/error.h"
 #include "msk/core/graph_colouring.h"
 #include "msk/core/winding_number.h"
@@ -92,9 +91,10 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     bool inside = false;
     if (s.distance > 1e-12) {
       // Between refreshes the side carries over from the last contact, unless the closest point has jumped (to the
-      // other side of a thin partner, say): then the winding number decides. A carried side only rules out work: a sample it places outside beyond half the gap is left alone. Every
-      // sample that would be corrected has its side confirmed by the winding number at B's current positions (B
-      // moves during the pass), since a wrong side there would move the sample the gap's depth into B.
+      // other side of a thin partner, say): then the winding number decides. A carried side only rules out work: a
+      // sample it places outside beyond half the gap is left alone. Every sample that would be corrected has its side
+      // confirmed by the winding number at B's current positions (B moves during the pass), since a wrong side there
+      // would move the sample the gap's depth into B.
       const bool carry = !refresh && (s.point - active[static_cast<size_t>(i)].contact).norm() < 0.5;
       inside = carry && (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0;
       if (!carry || inside || s.distance < 0.5 * gap) {
@@ -155,7 +155,8 @@ void checkSeparationInput(const std::vector<TriangleMesh*>& surfaces, const std:
   for (const SeparationPair& p : pairs) {
     const int n = static_cast<int>(surfaces.size());
     if (p.a < 0 || p.b < 0 || p.a >= n || p.b >= n || p.a == p.b)
-      throw ParameterError("separation pair", std::to_string(p.a) + "," + std::to_string(p.b), "must name two surfaces");
+      throw ParameterError("separation pair", std::to_string(p.a) + "," + std::to_string(p.b),
+                           "must name two surfaces");
     if (!(p.gapMm >= 0) || !std::isfinite(p.gapMm))
       throw ParameterError("collision gap", std::to_string(p.gapMm), "must be >= 0 mm");
     if (!(opts.reachMm > p.gapMm) || !std::isfinite(opts.reachMm))
@@ -218,9 +219,9 @@ std::vector<bool> farPairs(const std::vector<TriangleMesh*>& surfaces, const std
 struct SeparationState {
   std::vector<std::vector<ActiveSample>> active;  ///< per pair and direction: samples near the partner
   std::vector<long> version;                      ///< per surface
-  std::vector<long> settledAt;  ///< per pair: the larger version of its surfaces when it was found settled (−1: not)
-  std::vector<long> examinedAt;                   ///< per pair: that version when it was last examined
-  std::vector<PassResult> results;                ///< per pair: the last pass
+  std::vector<long> settledAt;   ///< per pair: the larger version of its surfaces when it was found settled (−1: not)
+  std::vector<long> examinedAt;  ///< per pair: that version when it was last examined
+  std::vector<PassResult> results;  ///< per pair: the last pass
 };
 
 /// One sweep: every colour of pairs in turn, the pairs of a colour in parallel, each pair in both directions.
@@ -233,7 +234,8 @@ PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<do
   };
   PassResult sweep;
   for (int colour = 0; colour < colours.colours(); ++colour) {
-    const int begin = colours.start[static_cast<size_t>(colour)], size = colours.start[static_cast<size_t>(colour) + 1] - begin;
+    const int begin = colours.start[static_cast<size_t>(colour)],
+              size = colours.start[static_cast<size_t>(colour) + 1] - begin;
     runGuarded(pool, size, [&](int lo, int hi) {
       for (int c = lo; c < hi; ++c) {
         const size_t k = static_cast<size_t>(colours.order[static_cast<size_t>(begin + c)]);
@@ -293,8 +295,7 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     out[1] = pairs[static_cast<size_t>(k)].b;
     return 2;
   });
-  WorkerPool pool(std::max(1, opts.threads > 0 ? opts.threads
-                                               : static_cast<int>(std::thread::hardware_concurrency())));
+  WorkerPool pool(std::max(1, opts.threads > 0 ? opts.threads : static_cast<int>(std::thread::hardware_concurrency())));
   const std::vector<double> reach = pairReaches(surfaces, pairs, opts, pool);
   const std::vector<bool> far = farPairs(surfaces, pairs, reach);
   SeparationState st;

@@ -1,13 +1,12 @@
 #include "msk/core/tet_split.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 
@@ -129,8 +128,8 @@ TetMesh splitBoundaryTets(const TetMesh& mesh, int* added, BoundarySplit rule) {
     for (int u : incident[static_cast<size_t>(a)])
       if (contains(tets[static_cast<size_t>(u)], b) && contains(tets[static_cast<size_t>(u)], c)) around.push_back(u);
     if (around.empty()) return;
-    const int m = newNode(
-        (nodes[static_cast<size_t>(a)] + nodes[static_cast<size_t>(b)] + nodes[static_cast<size_t>(c)]) / 3.0);
+    const int m =
+        newNode((nodes[static_cast<size_t>(a)] + nodes[static_cast<size_t>(b)] + nodes[static_cast<size_t>(c)]) / 3.0);
     for (int u : around) {
       const Tet old = tets[static_cast<size_t>(u)];
       tets[static_cast<size_t>(u)] = replaced(old, a, m);
@@ -141,7 +140,9 @@ TetMesh splitBoundaryTets(const TetMesh& mesh, int* added, BoundarySplit rule) {
     }
     ++steiner;
   };
-  auto isBoundary = [&](int v) { return v < static_cast<int>(onBoundary.size()) && onBoundary[static_cast<size_t>(v)]; };
+  auto isBoundary = [&](int v) {
+    return v < static_cast<int>(onBoundary.size()) && onBoundary[static_cast<size_t>(v)];
+  };
 
   if (rule == BoundarySplit::Bridges) {
     std::set<std::pair<int, int>> bridges;

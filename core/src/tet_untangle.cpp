@@ -1,12 +1,11 @@
 #include "msk/core/tet_untangle.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "msk/core/error.h"
 #include "msk/core/tet_split.h"
@@ -230,7 +229,8 @@ TetMeshUntangleReport untangleTetMesh(TetMesh& mesh, const Eigen::VectorXd& refe
     if (vol[t] <= 0)
       for (int k = 0; k < 4; ++k) near[static_cast<size_t>(mesh.tets(t, k))] = 1;
   Eigen::VectorXd limit(nn);
-  for (int i = 0; i < nn; ++i) limit[i] = interior[static_cast<size_t>(i)] ? std::numeric_limits<double>::infinity() : 0.0;
+  for (int i = 0; i < nn; ++i)
+    limit[i] = interior[static_cast<size_t>(i)] ? std::numeric_limits<double>::infinity() : 0.0;
   for (int t = 0; t < nt; ++t) {
     bool touches = false;
     for (int k = 0; k < 4; ++k) touches = touches || near[static_cast<size_t>(mesh.tets(t, k))];

@@ -19,8 +19,10 @@ Eigen::Matrix4d fitTransform(const Points& from, const Points& to, const Eigen::
     const Eigen::Matrix3d aa = a.transpose() * weights.asDiagonal() * a;
     const Eigen::Matrix3d ab = a.transpose() * weights.asDiagonal() * b;
     Eigen::FullPivLU<Eigen::Matrix3d> lu(aa);
-    if (!lu.isInvertible()) transform = PriorTransform::Similarity;  // planar or collinear input
-    else m = (lu.solve(ab)).transpose();
+    if (!lu.isInvertible())
+      transform = PriorTransform::Similarity;  // planar or collinear input
+    else
+      m = (lu.solve(ab)).transpose();
   }
   if (transform != PriorTransform::Affine) {
     const Eigen::Matrix3d cov = b.transpose() * weights.asDiagonal() * a / wsum;  // Σ w (to)(from)ᵀ

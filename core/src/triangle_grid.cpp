@@ -26,8 +26,8 @@ Eigen::Vector3i TriangleGrid::cellOf(const Eigen::Vector3d& x) const {
 void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles& tri) {
   layout_ = layout;
   triangles_ = static_cast<int>(tri.rows());
-  const size_t cells = static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) *
-                       static_cast<size_t>(layout.dims[2]);
+  const size_t cells =
+      static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) * static_cast<size_t>(layout.dims[2]);
   start_.assign(cells + 1, 0);
   items_.clear();
   seen_.assign(static_cast<size_t>(triangles_), -1);
@@ -84,15 +84,15 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
           if (boxSq > best.distance * best.distance) continue;
           const int t = item.triangle;
           Eigen::Vector3d bc;
-          const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(),
-                                                            p.row(tri(t, 2)).transpose(), &bc);
+          const Eigen::Vector3d cp = closestPointOnTriangle(
+              q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(), p.row(tri(t, 2)).transpose(), &bc);
           const double d = (cp - q).norm();
           if (!(d <= best.distance)) continue;
           // Where the block scan meets t first: its first cell in the block (the box's lowest corner), then t.
           const Eigen::Vector3i first =
               cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2])).cwiseMax(c - Eigen::Vector3i::Ones());
-          const size_t key = cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) +
-                             static_cast<size_t>(t);
+          const size_t key =
+              cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
           best.distance = d;
           best.point = cp;
@@ -108,8 +108,7 @@ double TriangleGrid::cellDistance2(const Eigen::Vector3d& q, int x, int y, int z
   const int cell[3] = {x, y, z};
   double s = 0;
   for (int i = 0; i < 3; ++i) {
-    const double lo =
-        cell[i] == 0 ? -std::numeric_limits<double>::infinity() : layout_.lo[i] + cell[i] * layout_.cell;
+    const double lo = cell[i] == 0 ? -std::numeric_limits<double>::infinity() : layout_.lo[i] + cell[i] * layout_.cell;
     const double hi = cell[i] == layout_.dims[i] - 1 ? std::numeric_limits<double>::infinity()
                                                      : layout_.lo[i] + (cell[i] + 1) * layout_.cell;
     const double d = q[i] < lo ? lo - q[i] : (q[i] > hi ? q[i] - hi : 0.0);

@@ -1,10 +1,9 @@
 #include "msk/core/triangle_mesh.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <unordered_map>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 namespace msk {
 
@@ -18,16 +17,16 @@ std::string closedMeshProblem(const TriangleMesh& m) {
   if (nf < 4) return "too few faces for a closed surface (" + std::to_string(nf) + ")";
   if (!m.vertices.allFinite()) return "non-finite vertex coordinates";
   for (const auto& kv : m.pointData)
-    if (kv.second.size() != nv) return "point array '" + kv.first + "' has " + std::to_string(kv.second.size()) +
-                                       " values for " + std::to_string(nv) + " vertices";
+    if (kv.second.size() != nv)
+      return "point array '" + kv.first + "' has " + std::to_string(kv.second.size()) + " values for " +
+             std::to_string(nv) + " vertices";
   // Directed edge -> count; a closed oriented manifold has each directed edge once and its reverse once.
   std::unordered_map<long long, int> directed;
   directed.reserve(static_cast<size_t>(nf) * 3);
   for (int f = 0; f < nf; ++f) {
     for (int k = 0; k < 3; ++k) {
       int a = m.faces(f, k), b = m.faces(f, (k + 1) % 3);
-      if (a < 0 || a >= nv || b < 0 || b >= nv)
-        return "face " + std::to_string(f) + " has a vertex index out of range";
+      if (a < 0 || a >= nv || b < 0 || b >= nv) return "face " + std::to_string(f) + " has a vertex index out of range";
       if (a == b) return "face " + std::to_string(f) + " is degenerate (repeated vertex)";
       if (++directed[edgeKey(a, b)] > 1)
         return "edge " + std::to_string(a) + "-" + std::to_string(b) +
@@ -127,11 +126,11 @@ Eigen::Matrix4d rasLpsFlip() {
 
 TriangleMesh makeIcosphere(double radius, int subdivisions, const Eigen::Vector3d& center) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Eigen::Vector3d> v = {{-1, t, 0}, {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+  std::vector<Eigen::Vector3d> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
                                     {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8},   {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-                                    {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                    {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (auto& p : v) p.normalize();
   for (int s = 0; s < subdivisions; ++s) {
     std::unordered_map<long long, int> mid;
@@ -157,7 +156,8 @@ TriangleMesh makeIcosphere(double radius, int subdivisions, const Eigen::Vector3
   }
   TriangleMesh m;
   m.vertices.resize(static_cast<Eigen::Index>(v.size()), 3);
-  for (size_t i = 0; i < v.size(); ++i) m.vertices.row(static_cast<Eigen::Index>(i)) = (center + radius * v[i]).transpose();
+  for (size_t i = 0; i < v.size(); ++i)
+    m.vertices.row(static_cast<Eigen::Index>(i)) = (center + radius * v[i]).transpose();
   m.faces.resize(static_cast<Eigen::Index>(f.size()), 3);
   for (size_t i = 0; i < f.size(); ++i) m.faces.row(static_cast<Eigen::Index>(i)) = f[i].transpose();
   if (enclosedVolume(m) < 0) flipFaces(m);

@@ -1,11 +1,10 @@
 #include "msk/core/volume_preservation.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 #include "msk/core/triangle_mesh.h"
@@ -81,11 +80,12 @@ void VolumePreservation::project(Points& pAll, const Eigen::VectorXd& wAll) {
   const Points p = pAll.middleRows(first_, n);
   lastVolume_ = volume(p);
   if (decision_ == VolumeDecision::Observing) {
-    const bool settled = seen_ >= std::max(1, opt_.minObserveProjections) && std::fabs(lastVolume_ - previous_) < opt_.settleRate * reference_;
+    const bool settled = seen_ >= std::max(1, opt_.minObserveProjections) &&
+                         std::fabs(lastVolume_ - previous_) < opt_.settleRate * reference_;
     previous_ = lastVolume_;
     if (settled || ++seen_ >= opt_.maxObserveProjections)
       decision_ = std::fabs(lastVolume_ / reference_ - 1.0) <= opt_.tolerance ? VolumeDecision::Holding
-                                                                             : VolumeDecision::Following;
+                                                                              : VolumeDecision::Following;
   }
   if (decision_ != VolumeDecision::Holding || opt_.stiffness == 0) return;
   const Points g = volumeGradient(p);

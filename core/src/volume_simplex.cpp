@@ -1,15 +1,14 @@
 #include "msk/core/volume_simplex.h"
 
-#include <algorithm>
-#include <string>
-#include <utility>
-#include <array>
-#include <cmath>
-#include <vector>
-
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "msk/core/error.h"
 
@@ -475,8 +474,9 @@ bool VolumeSimplexConstraints::row(int r, const Points& p, const Eigen::VectorXd
 }
 
 TetMesh makeCubeTets(int n, double edgeMm) {
-  if (n < 1 || !(edgeMm > 0)) throw ParameterError("cube tets", std::to_string(n) + " x " + std::to_string(edgeMm),
-                                                   "need n >= 1 cubes of a positive edge");
+  if (n < 1 || !(edgeMm > 0))
+    throw ParameterError("cube tets", std::to_string(n) + " x " + std::to_string(edgeMm),
+                         "need n >= 1 cubes of a positive edge");
   TetMesh m;
   const int s = n + 1;
   m.nodes.resize(s * s * s, 3);

@@ -1,13 +1,12 @@
 #include "msk/core/winding_number.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numeric>
 #include <string>
 #include <tuple>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/error.h"
 
@@ -29,7 +28,8 @@ double triangleWindingNumber(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
 namespace {
 using CellKey = std::tuple<long, long, long>;
 CellKey cellKey(const Eigen::Vector3d& c, double size) {
-  return {std::lround(std::floor(c.x() / size)), std::lround(std::floor(c.y() / size)), std::lround(std::floor(c.z() / size))};
+  return {std::lround(std::floor(c.x() / size)), std::lround(std::floor(c.y() / size)),
+          std::lround(std::floor(c.z() / size))};
 }
 }  // namespace
 
@@ -156,7 +156,8 @@ double WindingNumber::at(const Eigen::Vector3d& q, const Points& live) const {
 double WindingNumber::exactAt(const Eigen::Vector3d& q) const {
   double w = 0;
   for (int t = 0; t < f_.rows(); ++t)
-    w += triangleWindingNumber(q, v_.row(f_(t, 0)).transpose(), v_.row(f_(t, 1)).transpose(), v_.row(f_(t, 2)).transpose());
+    w += triangleWindingNumber(q, v_.row(f_(t, 0)).transpose(), v_.row(f_(t, 1)).transpose(),
+                               v_.row(f_(t, 2)).transpose());
   return w;
 }
 

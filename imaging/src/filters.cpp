@@ -105,8 +105,7 @@ ImageF resample(const ImageF& image, const Grid& target, float outside) {
 
 double percentile(std::vector<double> values, double p) {
   if (!(p >= 0 && p <= 100)) throw ParameterError("percentile", std::to_string(p), "must lie in [0, 100]");
-  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }),
-               values.end());
+  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }), values.end());
   if (values.empty()) throw Error("percentile: no finite values");
   const double rank = p / 100.0 * static_cast<double>(values.size() - 1);
   const size_t lo = std::min(static_cast<size_t>(std::floor(rank)), values.size() - 1);

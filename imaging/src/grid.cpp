@@ -1,8 +1,7 @@
 #include "msk/imaging/grid.h"
 
-#include <cmath>
-
 #include <Eigen/Geometry>
+#include <cmath>
 
 namespace msk {
 
@@ -67,7 +66,8 @@ bool Grid::fromAffine(const Eigen::Vector3i& dims, const Eigen::Matrix4d& affine
 
 Eigen::Matrix3d Grid::rotationXYZ(const Eigen::Vector3d& deg) {
   const double k = M_PI / 180.0;
-  return (Eigen::AngleAxisd(deg[2] * k, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(deg[1] * k, Eigen::Vector3d::UnitY()) *
+  return (Eigen::AngleAxisd(deg[2] * k, Eigen::Vector3d::UnitZ()) *
+          Eigen::AngleAxisd(deg[1] * k, Eigen::Vector3d::UnitY()) *
           Eigen::AngleAxisd(deg[0] * k, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();
 }

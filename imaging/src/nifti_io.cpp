@@ -12,6 +12,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -24,8 +25,6 @@
 #include <sstream>
 #include <type_traits>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -40,23 +39,34 @@ static_assert(sizeof(nifti_2_header) == 540, "nifti_2_header must be packed to 5
 
 const char* dataTypeName(DataType t) {
   switch (t) {
-    case DataType::UInt8: return "uint8";
-    case DataType::Int8: return "int8";
-    case DataType::Int16: return "int16";
-    case DataType::UInt16: return "uint16";
-    case DataType::Int32: return "int32";
-    case DataType::UInt32: return "uint32";
-    case DataType::Float32: return "float32";
-    case DataType::Float64: return "float64";
+    case DataType::UInt8:
+      return "uint8";
+    case DataType::Int8:
+      return "int8";
+    case DataType::Int16:
+      return "int16";
+    case DataType::UInt16:
+      return "uint16";
+    case DataType::Int32:
+      return "int32";
+    case DataType::UInt32:
+      return "uint32";
+    case DataType::Float32:
+      return "float32";
+    case DataType::Float64:
+      return "float64";
   }
   return "unknown";
 }
 
 const char* affineSourceName(AffineSource s) {
   switch (s) {
-    case AffineSource::Sform: return "sform";
-    case AffineSource::Qform: return "qform";
-    case AffineSource::Pixdim: return "pixdim";
+    case AffineSource::Sform:
+      return "sform";
+    case AffineSource::Qform:
+      return "qform";
+    case AffineSource::Pixdim:
+      return "pixdim";
   }
   return "unknown";
 }
@@ -72,14 +82,22 @@ constexpr double kDisagreeMm = 0.1, kDisagreeDeg = 0.1;    // sform/qform disagr
 
 int niftiCode(DataType t) {
   switch (t) {
-    case DataType::UInt8: return NIFTI_TYPE_UINT8;
-    case DataType::Int8: return NIFTI_TYPE_INT8;
-    case DataType::Int16: return NIFTI_TYPE_INT16;
-    case DataType::UInt16: return NIFTI_TYPE_UINT16;
-    case DataType::Int32: return NIFTI_TYPE_INT32;
-    case DataType::UInt32: return NIFTI_TYPE_UINT32;
-    case DataType::Float32: return NIFTI_TYPE_FLOAT32;
-    case DataType::Float64: return NIFTI_TYPE_FLOAT64;
+    case DataType::UInt8:
+      return NIFTI_TYPE_UINT8;
+    case DataType::Int8:
+      return NIFTI_TYPE_INT8;
+    case DataType::Int16:
+      return NIFTI_TYPE_INT16;
+    case DataType::UInt16:
+      return NIFTI_TYPE_UINT16;
+    case DataType::Int32:
+      return NIFTI_TYPE_INT32;
+    case DataType::UInt32:
+      return NIFTI_TYPE_UINT32;
+    case DataType::Float32:
+      return NIFTI_TYPE_FLOAT32;
+    case DataType::Float64:
+      return NIFTI_TYPE_FLOAT64;
   }
   return DT_UNKNOWN;
 }
@@ -97,13 +115,17 @@ bool fromNiftiCode(int code, DataType& out) {
 int bytesPerVoxel(DataType t) {
   switch (t) {
     case DataType::UInt8:
-    case DataType::Int8: return 1;
+    case DataType::Int8:
+      return 1;
     case DataType::Int16:
-    case DataType::UInt16: return 2;
+    case DataType::UInt16:
+      return 2;
     case DataType::Int32:
     case DataType::UInt32:
-    case DataType::Float32: return 4;
-    case DataType::Float64: return 8;
+    case DataType::Float32:
+      return 4;
+    case DataType::Float64:
+      return 8;
   }
   return 0;
 }
@@ -125,28 +147,53 @@ struct Tag {
 template <typename F>
 void dispatch(DataType t, F&& f) {
   switch (t) {
-    case DataType::UInt8: f(Tag<uint8_t>{}); return;
-    case DataType::Int8: f(Tag<int8_t>{}); return;
-    case DataType::Int16: f(Tag<int16_t>{}); return;
-    case DataType::UInt16: f(Tag<uint16_t>{}); return;
-    case DataType::Int32: f(Tag<int32_t>{}); return;
-    case DataType::UInt32: f(Tag<uint32_t>{}); return;
-    case DataType::Float32: f(Tag<float>{}); return;
-    case DataType::Float64: f(Tag<double>{}); return;
+    case DataType::UInt8:
+      f(Tag<uint8_t>{});
+      return;
+    case DataType::Int8:
+      f(Tag<int8_t>{});
+      return;
+    case DataType::Int16:
+      f(Tag<int16_t>{});
+      return;
+    case DataType::UInt16:
+      f(Tag<uint16_t>{});
+      return;
+    case DataType::Int32:
+      f(Tag<int32_t>{});
+      return;
+    case DataType::UInt32:
+      f(Tag<uint32_t>{});
+      return;
+    case DataType::Float32:
+      f(Tag<float>{});
+      return;
+    case DataType::Float64:
+      f(Tag<double>{});
+      return;
   }
 }
 
 template <typename T>
 const char* cppTypeName() {
-  if constexpr (std::is_same_v<T, float>) return "float";
-  else if constexpr (std::is_same_v<T, double>) return "double";
-  else if constexpr (std::is_same_v<T, int8_t>) return "int8";
-  else if constexpr (std::is_same_v<T, uint8_t>) return "uint8";
-  else if constexpr (std::is_same_v<T, int16_t>) return "int16";
-  else if constexpr (std::is_same_v<T, uint16_t>) return "uint16";
-  else if constexpr (std::is_same_v<T, int32_t>) return "int32";
-  else if constexpr (std::is_same_v<T, uint32_t>) return "uint32";
-  else return "the requested type";
+  if constexpr (std::is_same_v<T, float>)
+    return "float";
+  else if constexpr (std::is_same_v<T, double>)
+    return "double";
+  else if constexpr (std::is_same_v<T, int8_t>)
+    return "int8";
+  else if constexpr (std::is_same_v<T, uint8_t>)
+    return "uint8";
+  else if constexpr (std::is_same_v<T, int16_t>)
+    return "int16";
+  else if constexpr (std::is_same_v<T, uint16_t>)
+    return "uint16";
+  else if constexpr (std::is_same_v<T, int32_t>)
+    return "int32";
+  else if constexpr (std::is_same_v<T, uint32_t>)
+    return "uint32";
+  else
+    return "the requested type";
 }
 
 /// Empty if `v` can be stored exactly in T (integers: integral and in range; floats: in range or non-finite).
@@ -155,7 +202,8 @@ const char* fitProblem(double v) {
   if constexpr (std::is_integral_v<T>) {
     if (!std::isfinite(v)) return "is not finite";
     if (v != std::nearbyint(v)) return "is not an integer";
-    if (v < static_cast<double>(std::numeric_limits<T>::lowest()) || v > static_cast<double>(std::numeric_limits<T>::max()))
+    if (v < static_cast<double>(std::numeric_limits<T>::lowest()) ||
+        v > static_cast<double>(std::numeric_limits<T>::max()))
       return "is out of range";
   } else if constexpr (sizeof(T) < sizeof(double)) {
     if (std::isfinite(v) && std::fabs(v) > static_cast<double>(std::numeric_limits<T>::max())) return "is out of range";
@@ -248,7 +296,8 @@ class GzReader {
       const char* msg = gzerror(file_, &code);
       if (r < 0 || (code != Z_OK && code != Z_STREAM_END)) {
         error_ = msg && *msg ? msg : "zlib error";
-        if (error_.compare(0, path_.size() + 2, path_ + ": ") == 0) error_ = error_.substr(path_.size() + 2);  // zlib prefixes the path
+        if (error_.compare(0, path_.size() + 2, path_ + ": ") == 0)
+          error_ = error_.substr(path_.size() + 2);  // zlib prefixes the path
       }
       break;
     }
@@ -294,12 +343,12 @@ struct Header {
   int bytesPerVoxel = 4;
   int ndim = 3;
   Eigen::Vector3i dims = Eigen::Vector3i::Ones();
-  uint64_t voxOffset = 352;   // where voxels start
-  uint64_t dataBytes = 0;     // voxel bytes the header requires
+  uint64_t voxOffset = 352;         // where voxels start
+  uint64_t dataBytes = 0;           // voxel bytes the header requires
   double pixdim[4] = {0, 1, 1, 1};  // raw pixdim[0..3]
-  bool quaternFinite = true;  // raw quaternion fields are finite
+  bool quaternFinite = true;        // raw quaternion fields are finite
   int xyzUnits = 0;
-  NimPtr nim;                 // nifticlib's view: qto_xyz, sto_xyz, codes, scaling
+  NimPtr nim;  // nifticlib's view: qto_xyz, sto_xyz, codes, scaling
 };
 
 uint32_t swap32(uint32_t v) { return (v >> 24) | ((v >> 8) & 0xff00u) | ((v << 8) & 0xff0000u) | (v << 24); }
@@ -309,15 +358,16 @@ template <typename H>
 void validate(const H& h, const std::string& path, Header& out) {
   const int64_t ndim = static_cast<int64_t>(h.dim[0]);
   if (ndim < 1 || ndim > 7)
-    throw IoError(path, "invalid header: dim[0] = " + std::to_string(ndim) + " (the number of dimensions must be 1 to 7)");
+    throw IoError(path,
+                  "invalid header: dim[0] = " + std::to_string(ndim) + " (the number of dimensions must be 1 to 7)");
   for (int64_t i = 1; i <= ndim; ++i)
     if (h.dim[i] <= 0)
-      throw IoError(path, "invalid header: dim[" + std::to_string(i) + "] = " + std::to_string(static_cast<int64_t>(h.dim[i])) +
-                              " (image dimensions must be positive)");
+      throw IoError(path, "invalid header: dim[" + std::to_string(i) + "] = " +
+                              std::to_string(static_cast<int64_t>(h.dim[i])) + " (image dimensions must be positive)");
   for (int64_t i = 4; i <= ndim; ++i)
     if (h.dim[i] > 1)
-      throw IoError(path, "image has more than 3 dimensions (dim[" + std::to_string(i) + "] = " +
-                              std::to_string(static_cast<int64_t>(h.dim[i])) +
+      throw IoError(path, "image has more than 3 dimensions (dim[" + std::to_string(i) +
+                              "] = " + std::to_string(static_cast<int64_t>(h.dim[i])) +
                               "); only single 3-D volumes are supported, extract one volume first");
   int64_t n[3];
   for (int a = 0; a < 3; ++a) {
@@ -342,17 +392,17 @@ void validate(const H& h, const std::string& path, Header& out) {
   out.dataBytes = bytes;
 
   const double off = static_cast<double>(h.vox_offset);
-  if (!std::isfinite(off) || off < 0 || off > 1e15)
-    throw IoError(path, "invalid header: vox_offset = " + fmt(off));
+  if (!std::isfinite(off) || off < 0 || off > 1e15) throw IoError(path, "invalid header: vox_offset = " + fmt(off));
   out.voxOffset = std::max<uint64_t>(static_cast<uint64_t>(off), static_cast<uint64_t>(h.sizeof_hdr));
   uint64_t total = 0;
   if (__builtin_add_overflow(out.voxOffset, out.dataBytes, &total))
     throw IoError(path, "invalid header: data size overflows");
 
   for (int i = 0; i < 4; ++i) out.pixdim[i] = static_cast<double>(h.pixdim[i]);
-  out.quaternFinite = std::isfinite(static_cast<double>(h.quatern_b)) && std::isfinite(static_cast<double>(h.quatern_c)) &&
-                      std::isfinite(static_cast<double>(h.quatern_d)) && std::isfinite(static_cast<double>(h.qoffset_x)) &&
-                      std::isfinite(static_cast<double>(h.qoffset_y)) && std::isfinite(static_cast<double>(h.qoffset_z));
+  out.quaternFinite =
+      std::isfinite(static_cast<double>(h.quatern_b)) && std::isfinite(static_cast<double>(h.quatern_c)) &&
+      std::isfinite(static_cast<double>(h.quatern_d)) && std::isfinite(static_cast<double>(h.qoffset_x)) &&
+      std::isfinite(static_cast<double>(h.qoffset_y)) && std::isfinite(static_cast<double>(h.qoffset_z));
   out.xyzUnits = XYZT_TO_SPACE(h.xyzt_units);
 }
 
@@ -392,7 +442,8 @@ Header parseHeader(const std::string& path) {
     const char* magic = reinterpret_cast<const char*>(buf) + 344;
     if (std::memcmp(magic, "ni1\0", 4) == 0)
       throw IoError(path, "two-file NIfTI (.hdr/.img) is not supported; convert it to a single .nii or .nii.gz");
-    if (std::memcmp(magic, "n+1\0", 4) != 0) throw IoError(path, "not a NIfTI file (no NIfTI-1 magic; Analyze 7.5 is not supported)");
+    if (std::memcmp(magic, "n+1\0", 4) != 0)
+      throw IoError(path, "not a NIfTI file (no NIfTI-1 magic; Analyze 7.5 is not supported)");
     nifti_1_header raw, h;
     std::memcpy(&raw, buf, sizeof(raw));
     h = raw;
@@ -401,7 +452,8 @@ Header parseHeader(const std::string& path) {
     validate(h, path, out);
     out.nim.reset(nifti_convert_n1hdr2nim(raw, nullptr));
   } else if (v2) {
-    if (got < sizeof(nifti_2_header)) throw IoError(path, "truncated NIfTI-2 header (" + std::to_string(got) + " of 540 bytes)");
+    if (got < sizeof(nifti_2_header))
+      throw IoError(path, "truncated NIfTI-2 header (" + std::to_string(got) + " of 540 bytes)");
     const char* magic = reinterpret_cast<const char*>(buf) + 4;
     if (std::memcmp(magic, "ni2\0", 4) == 0)
       throw IoError(path, "two-file NIfTI (.hdr/.img) is not supported; convert it to a single .nii or .nii.gz");
@@ -451,7 +503,7 @@ Grid chooseGrid(const Header& h, const std::string& path, NiftiInfo& info) {
               ") is not a rotation times per-axis scaling (sheared, degenerate or non-finite); ignoring it");
   if (info.qformCode > 0 && !qOk)
     (sOk ? log::debug : log::warn)(path + ": qform (code " + std::to_string(info.qformCode) +
-              ") is unusable (non-positive or non-finite pixdim, or bad quaternion); ignoring it");
+                                   ") is unusable (non-positive or non-finite pixdim, or bad quaternion); ignoring it");
   if (sOk && qOk) {
     const double mm = cornerDistance(info.sform, info.qform, h.dims);
     const double deg = axisAngleDeg(info.sform.topLeftCorner<3, 3>(), info.qform.topLeftCorner<3, 3>());
@@ -482,11 +534,14 @@ Grid chooseGrid(const Header& h, const std::string& path, NiftiInfo& info) {
     g.direction.setIdentity();
     g.origin.setZero();
     info.affineSource = AffineSource::Pixdim;
-    log::warn(path + ": no usable sform or qform; using pixdim spacing with identity direction and origin 0 (world position unknown)");
+    log::warn(path +
+              ": no usable sform or qform; using pixdim spacing with identity direction and origin 0 (world position "
+              "unknown)");
   }
   log::debug(path + ": NIfTI-" + std::to_string(h.version) + " " + dataTypeName(h.type) + " " +
-            dimsText(g.dims[0], g.dims[1], g.dims[2]) + " voxels of " + fmt(g.spacing[0], 6) + "×" +
-            fmt(g.spacing[1], 6) + "×" + fmt(g.spacing[2], 6) + " mm, orientation from the " + affineSourceName(info.affineSource));
+             dimsText(g.dims[0], g.dims[1], g.dims[2]) + " voxels of " + fmt(g.spacing[0], 6) + "×" +
+             fmt(g.spacing[1], 6) + "×" + fmt(g.spacing[2], 6) + " mm, orientation from the " +
+             affineSourceName(info.affineSource));
   return g;
 }
 
@@ -511,8 +566,8 @@ uint64_t physicalMemory() {
 }
 
 std::string shortData(const Header& h, uint64_t available, const std::string& zerr) {
-  std::string s = "truncated: header claims " + std::to_string(h.dataBytes) + " bytes of voxel data but the file holds " +
-                  std::to_string(available);
+  std::string s = "truncated: header claims " + std::to_string(h.dataBytes) +
+                  " bytes of voxel data but the file holds " + std::to_string(available);
   if (!zerr.empty()) s += " (gzip stream ends early: " + zerr + ")";
   return s;
 }
@@ -540,8 +595,10 @@ void decodeChunk(const unsigned char* raw, size_t n, size_t base, T* out, ReadSt
     if (st.scale) v = v * st.slope + st.inter;
     if (!std::isfinite(v)) {
       ++st.nonFinite;
-      if constexpr (std::is_floating_point_v<T>) out[i] = static_cast<T>(v);
-      else out[i] = T(0);
+      if constexpr (std::is_floating_point_v<T>)
+        out[i] = static_cast<T>(v);
+      else
+        out[i] = T(0);
       continue;
     }
     st.lo = std::min(st.lo, v);
@@ -567,7 +624,8 @@ void decodeChunk(const unsigned char* raw, size_t n, size_t base, T* out, ReadSt
 }
 
 template <typename T>
-Volume<T> readVoxels(const std::string& path, const Header& h, const Grid& grid, NiftiInfo& info, const NiftiReadOptions& opts) {
+Volume<T> readVoxels(const std::string& path, const Header& h, const Grid& grid, NiftiInfo& info,
+                     const NiftiReadOptions& opts) {
   const uint64_t total = h.voxOffset + h.dataBytes;  // overflow checked in validate()
   if (!h.compressed) {
     std::error_code ec;
@@ -585,12 +643,14 @@ Volume<T> readVoxels(const std::string& path, const Header& h, const Grid& grid,
     const uint64_t limit = fitsMemory ? total : std::min(total, h.voxOffset + 4 * kCountFirstBytes);
     GzReader counter(path);
     const uint64_t avail = counter.skip(limit);
-    if (avail < limit) throw IoError(path, shortData(h, avail > h.voxOffset ? avail - h.voxOffset : 0, counter.error()));
+    if (avail < limit)
+      throw IoError(path, shortData(h, avail > h.voxOffset ? avail - h.voxOffset : 0, counter.error()));
   }
   if (!fitsMemory)
     throw IoError(path, "image of " + dimsText(grid.dims[0], grid.dims[1], grid.dims[2]) + " voxels needs " +
                             (need ? std::to_string(need) + " bytes" : std::string("more than 2^64 bytes")) + " as " +
-                            cppTypeName<T>() + ", more than this machine's memory (" + std::to_string(memory) + " bytes)");
+                            cppTypeName<T>() + ", more than this machine's memory (" + std::to_string(memory) +
+                            " bytes)");
 
   Volume<T> vol(grid);
   ReadStats st;
@@ -625,7 +685,8 @@ Volume<T> readVoxels(const std::string& path, const Header& h, const Grid& grid,
     throw IoError(path, std::to_string(st.nonFinite) + " NaN/Inf voxels cannot be read as " + cppTypeName<T>());
   if (st.bad)
     throw IoError(path, std::string("voxel ") + voxelText(st.badIndex, grid.dims) + " value " + fmt(st.badValue) +
-                            (info.scaled ? " (after scl_slope/scl_inter)" : "") + " " + st.badWhy + " for " + cppTypeName<T>());
+                            (info.scaled ? " (after scl_slope/scl_inter)" : "") + " " + st.badWhy + " for " +
+                            cppTypeName<T>());
   if (st.nonFinite > 0) log::warn(path + ": " + std::to_string(st.nonFinite) + " NaN/Inf voxels");
   return vol;
 }
@@ -701,7 +762,8 @@ void writeNifti(const std::string& path, const Volume<T>& vol, DataType type, co
     throw IoError(path, "volume holds " + std::to_string(vol.data.size()) + " values but its grid has " +
                             std::to_string(g.voxelCount()) + " voxels");
   if (opts.version == 1 && g.dims.maxCoeff() > 32767)
-    throw IoError(path, "dimension " + std::to_string(g.dims.maxCoeff()) + " exceeds the NIfTI-1 limit of 32767; write NIfTI-2");
+    throw IoError(
+        path, "dimension " + std::to_string(g.dims.maxCoeff()) + " exceeds the NIfTI-1 limit of 32767; write NIfTI-2");
   checkFits(path, vol, type);
 
   // Geometry: our affine in both forms, or the `like` header's forms copied exactly.
@@ -783,7 +845,8 @@ void writeNifti(const std::string& path, const Volume<T>& vol, DataType type, co
   writeAtomically(path, [&](const std::string& tmp) {
     ZnzCloser out;
     out.fp = znzopen(tmp.c_str(), "wb", gz ? 1 : 0);
-    if (znz_isnull(out.fp)) throw IoError(path, std::string("cannot create the file: ") + std::strerror(errno ? errno : EIO));
+    if (znz_isnull(out.fp))
+      throw IoError(path, std::string("cannot create the file: ") + std::strerror(errno ? errno : EIO));
     const char extender[4] = {0, 0, 0, 0};
     if (znzwrite(hdr, 1, hdrSize, out.fp) != hdrSize || znzwrite(extender, 1, 4, out.fp) != 4)
       throw IoError(path, "cannot write the header (disk full?)");
@@ -796,7 +859,8 @@ void writeNifti(const std::string& path, const Volume<T>& vol, DataType type, co
         using S = typename decltype(tag)::type;
         encodeChunk<S, T>(vol.data.data() + start, n, buf.data());
       });
-      if (znzwrite(buf.data(), 1, n * bpv, out.fp) != n * bpv) throw IoError(path, "cannot write voxel data (disk full?)");
+      if (znzwrite(buf.data(), 1, n * bpv, out.fp) != n * bpv)
+        throw IoError(path, "cannot write voxel data (disk full?)");
     }
     znzFile fp = out.fp;
     out.fp = nullptr;
@@ -806,8 +870,8 @@ void writeNifti(const std::string& path, const Volume<T>& vol, DataType type, co
              dimsText(g.dims[0], g.dims[1], g.dims[2]));
 }
 
-#define MSK_NIFTI_INSTANTIATE(T)                                                                 \
-  template Volume<T> readNifti<T>(const std::string&, NiftiInfo*, const NiftiReadOptions&);     \
+#define MSK_NIFTI_INSTANTIATE(T)                                                            \
+  template Volume<T> readNifti<T>(const std::string&, NiftiInfo*, const NiftiReadOptions&); \
   template void writeNifti<T>(const std::string&, const Volume<T>&, DataType, const NiftiWriteOptions&);
 MSK_NIFTI_INSTANTIATE(float)
 MSK_NIFTI_INSTANTIATE(double)

@@ -1,16 +1,15 @@
-// Closed mesh → label map by scanlines along the grid's i axis, in continuous voxel coordinates. A voxel is inside where
-// the mesh's winding number is positive (signed crossings, not parity): for a surface without self-intersections the
-// two agree; where an evolved surface folds over itself, a sheet turned inside out (winding number −1) is not taken
+// Closed mesh → label map by scanlines along the grid's i axis, in continuous voxel coordinates. A voxel is inside
+// where the mesh's winding number is positive (signed crossings, not parity): for a surface without self-intersections
+// the two agree; where an evolved surface folds over itself, a sheet turned inside out (winding number −1) is not taken
 // for the object, and a region it covers twice (2) is not left as a hole.
 #include "msk/imaging/rasterize.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <utility>
 #include <vector>
-
-#include <Eigen/LU>
 
 #include "msk/core/error.h"
 

@@ -32,14 +32,14 @@ static_assert(kSegments * kObjectsPerSegment == kMultiPhantomStructures, "4 segm
 
 // Field of view (RAS mm): both limbs side by side, thighs above the knee plane z = 0, lower legs below.
 const Eigen::Vector3d kFovLo(-145, -75, -170), kFovHi(145, 75, 170);
-constexpr double kLimbOffsetX = 72;    // mm from the midline to each limb's model origin
+constexpr double kLimbOffsetX = 72;     // mm from the midline to each limb's model origin
 constexpr double kSegmentOffsetZ = 84;  // mm from the knee plane to each segment's model origin
 
 struct SegmentInfo {
-  const char* side;     // name prefix
-  bool thigh;           // thigh (femur) or lower leg (tibia)
-  double sx, sz;        // axis flips of the rigid map (±1): left limbs mirror x, lower legs flip z
-  double ox, oz;        // model origin in world mm
+  const char* side;  // name prefix
+  bool thigh;        // thigh (femur) or lower leg (tibia)
+  double sx, sz;     // axis flips of the rigid map (±1): left limbs mirror x, lower legs flip z
+  double ox, oz;     // model origin in world mm
 };
 constexpr SegmentInfo kSegmentInfo[kSegments] = {
     {"r_", true, 1, 1, kLimbOffsetX, kSegmentOffsetZ},
@@ -50,8 +50,8 @@ constexpr SegmentInfo kSegmentInfo[kSegments] = {
 // Compartments counter-clockwise from lateral (model +x) through anterior (+y); compartment m spans septa m → m+1.
 constexpr const char* kThighNames[kObjectsPerSegment] = {"femur",           "vastus_lateralis", "vastus_intermedius",
                                                          "vastus_medialis", "adductors",        "hamstrings"};
-constexpr const char* kLegNames[kObjectsPerSegment] = {"tibia",   "peroneus",          "tibialis_anterior",
-                                                       "flexors", "soleus",            "gastrocnemius"};
+constexpr const char* kLegNames[kObjectsPerSegment] = {"tibia",   "peroneus", "tibialis_anterior",
+                                                       "flexors", "soleus",   "gastrocnemius"};
 
 void ringCompartments(Anatomy& a, const std::array<double, kMusclesPerSegment>& septumDeg) {
   a.muscles = kMusclesPerSegment;
@@ -153,7 +153,8 @@ std::vector<TriangleMesh> objectMeshes(const std::vector<Segment>& segments, dou
     for (int o = 0; o < kObjectsPerSegment; ++o) {
       const Grid g = phantom::implicitSamplingGrid(seg.worldBounds(o), h);
       std::vector<Slice> slices(static_cast<size_t>(g.dims[2]));
-      for (int k = 0; k < g.dims[2]; ++k) slices[static_cast<size_t>(k)] = seg.model.slice(seg.modelZ(g.origin[2] + k * h));
+      for (int k = 0; k < g.dims[2]; ++k)
+        slices[static_cast<size_t>(k)] = seg.model.slice(seg.modelZ(g.origin[2] + k * h));
       const ImageF field = phantom::sampleImplicit(g, Model::kLipschitz, [&](int i, int j, int k) {
         const Eigen::Vector3d q = seg.toModel(g.origin + h * Eigen::Vector3d(i, j, k));
         return static_cast<float>(seg.model.object(o, slices[static_cast<size_t>(k)], q));
@@ -177,8 +178,10 @@ std::vector<TriangleMesh> templateMeshes(double h, int vertices, const std::func
   std::lock_guard<std::mutex> lock(mutex);
   auto it = cache.find({h, vertices});
   if (it == cache.end())
-    it = cache.emplace(std::make_pair(h, vertices),
-                       objectMeshes(placeSegments(meanAnatomies()), h, vertices, objectDone)).first;
+    it =
+        cache
+            .emplace(std::make_pair(h, vertices), objectMeshes(placeSegments(meanAnatomies()), h, vertices, objectDone))
+            .first;
   return it->second;
 }
 
@@ -206,8 +209,8 @@ Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress)
   ph.tissues = LabelMap(grid);
   const double imageShare = opts.meshes ? 0.3 : 0.95;
   report(0.02, "image");
-  phantom::renderTissues([&](const Eigen::Vector3d& p) { return classify(segments, p); }, Model::kLipschitz,
-                         ph.image, ph.labels, ph.tissues,
+  phantom::renderTissues([&](const Eigen::Vector3d& p) { return classify(segments, p); }, Model::kLipschitz, ph.image,
+                         ph.labels, ph.tissues,
                          [&](int k) { report(0.02 + 0.8 * imageShare * (k + 1) / grid.dims[2], "image"); });
   phantom::degradeImage(ph.image, opts.seed, opts.noise, opts.bias);
   report(0.02 + imageShare, "image");

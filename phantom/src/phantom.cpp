@@ -37,7 +37,6 @@ constexpr ObjectInfo kObjects[] = {
     {"femur", 1, "bone"}, {"quadriceps", 2, "muscle"}, {"hamstrings", 3, "muscle"}, {"adductors", 4, "muscle"}};
 constexpr int kObjectCount = 4;
 
-
 // The image grid: given spacing and rotation, covering the fixed world box (centred on it).
 Grid phantomGrid(const PhantomOptions& o) {
   return phantom::coveringGrid(o.spacing, o.obliqueDegrees, Eigen::Vector3d(-kFovHalfXY, -kFovHalfXY, -kFovHalfZ),

@@ -65,16 +65,17 @@ struct Anatomy {
   double envelopeWave = 0.04, envelopeWavePhase = 0;    ///< radii × (1 + wave·sin(1.5πu + phase))
   // Septa: half-planes radiating from the femur axis, angle from +x (lateral) towards +y (anterior). The thigh's are
   // 0 lateral (quadriceps|hamstrings), 1 medial (quadriceps|adductors), 2 posterior (adductors|hamstrings).
-  int muscles = 3;                                          ///< compartments (= septa), at most kMaxMuscles
+  int muscles = 3;                                                ///< compartments (= septa), at most kMaxMuscles
   std::array<double, kMaxMuscles> septumAngleDeg{-40, 150, 245};  ///< at u = 0
   /// Compartment m spans counter-clockwise from septum muscleFirstSeptum[m] to septum muscleLastSeptum[m]
   /// (thigh: 0 quadriceps, 1 hamstrings, 2 adductors).
   std::array<int, kMaxMuscles> muscleFirstSeptum{0, 2, 1};
   std::array<int, kMaxMuscles> muscleLastSeptum{1, 0, 2};  ///< see muscleFirstSeptum
-  double twistDeg = 10;              ///< common rotation added at u = +1 (subtracted at u = −1)
-  double septumHalfThickness = 0.7;  ///< mm
-  std::array<std::array<double, 2>, kMaxMuscles> septumMissing{};  ///< z interval [lo, hi] without septum (none if lo ≥ hi)
-  double septumRamp = 5.0;                                    ///< mm over which a septum fades in and out
+  double twistDeg = 10;                                    ///< common rotation added at u = +1 (subtracted at u = −1)
+  double septumHalfThickness = 0.7;                        ///< mm
+  std::array<std::array<double, 2>, kMaxMuscles>
+      septumMissing{};      ///< z interval [lo, hi] without septum (none if lo ≥ hi)
+  double septumRamp = 5.0;  ///< mm over which a septum fades in and out
   // Subcutaneous fat and skin: elliptic cylinder around the envelope.
   double fatX = 10, fatY = 10;  ///< minimum fat thickness along x and y, mm
   double skinThickness = 1.5;   ///< mm
@@ -91,15 +92,15 @@ void perturbAnatomy(Anatomy& a, Random& rng);
 /// Everything that depends on z only, evaluated once per z.
 struct Slice {
   double z = 0;
-  Eigen::Vector2d axis;                               ///< femur centreline c(z)
-  Eigen::Vector2d capAxis;                            ///< c(clamp(z)) for the capsule
-  double capDz = 0;                                   ///< z − clamp(z, bottom, top)
-  double radius = 0, marrowRadius = 0;                ///< at clamp(z)
-  Eigen::Vector2d envCentre;                          ///< envelope centre
-  double envA = 1, envB = 1, envU = 0, envScale = 1;  ///< semi-axes, normalised z, min(a, b)
+  Eigen::Vector2d axis;                                ///< femur centreline c(z)
+  Eigen::Vector2d capAxis;                             ///< c(clamp(z)) for the capsule
+  double capDz = 0;                                    ///< z − clamp(z, bottom, top)
+  double radius = 0, marrowRadius = 0;                 ///< at clamp(z)
+  Eigen::Vector2d envCentre;                           ///< envelope centre
+  double envA = 1, envB = 1, envU = 0, envScale = 1;   ///< semi-axes, normalised z, min(a, b)
   std::array<Eigen::Vector2d, kMaxMuscles> septumDir;  ///< unit directions of the septa
   std::array<double, kMaxMuscles> septumHalf{};        ///< half-thicknesses (0 where missing)
-  Eigen::Vector2d skinCentre;                         ///< skin cylinder axis
+  Eigen::Vector2d skinCentre;                          ///< skin cylinder axis
 };
 
 /// What a point is made of.

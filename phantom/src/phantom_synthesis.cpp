@@ -75,8 +75,8 @@ struct BiasField {
 namespace msk {
 
 void checkPhantomOptions(const PhantomOptions& o) {
-  using phantom::vec;
   using phantom::num;
+  using phantom::vec;
   for (int a = 0; a < 3; ++a)
     if (!std::isfinite(o.spacing[a]) || o.spacing[a] <= 0 || o.spacing[a] > 10)
       throw ParameterError("--spacing", vec(o.spacing), "each voxel size must be in (0, 10] mm");
@@ -123,8 +123,8 @@ Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& oblique
   return g;
 }
 
-void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz,
-                   ImageF& image, LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone) {
+void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz, ImageF& image,
+                   LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone) {
   const Grid& grid = labels.grid;
   const Eigen::Matrix3d step = grid.direction * grid.spacing.asDiagonal();
   const double halfDiagonal = 0.5 * grid.spacing.norm();

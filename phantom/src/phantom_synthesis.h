@@ -2,11 +2,10 @@
 // Private to the phantoms (phantom.cpp, multi_phantom.cpp): image formation from a point classifier (partial volume,
 // blur, bias, Rician noise) and the sampling of implicit surfaces for meshing, shared so that every phantom forms its
 // image and meshes the same way.
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <functional>
-
-#include <Eigen/Core>
 
 #include "msk/imaging/volume.h"
 #include "msk/phantom/phantom.h"
@@ -32,8 +31,8 @@ Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& oblique
 /// classifier: voxels whose centre lies within the classifier's distance bound (× `lipschitz`) of a tissue boundary
 /// are supersampled (about 0.6 mm apart, 2 to 5 samples per axis). `image`, `labels` and `tissues` must share the
 /// grid; `sliceDone(k)` is called after every eighth plane k.
-void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz,
-                   ImageF& image, LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone);
+void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz, ImageF& image,
+                   LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone);
 
 /// Scanner degradation of a rendered image (fat = 1) in place: Gaussian blur of σ = 0.5 voxel, a smooth multiplicative
 /// bias field 1 + bias·B(p) (|B| ≤ 1, wavelengths 250–450 mm), Rician noise of σ = `noise` (fraction of fat), then

@@ -1,12 +1,12 @@
 #include "cgal_aabb.h"
 
-#include <cmath>
-#include <vector>
-
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Simple_cartesian.h>
+
+#include <cmath>
+#include <vector>
 
 #include "msk/core/error.h"
 
@@ -27,7 +27,8 @@ struct TriangleDistance::Tree {
   AabbTree tree;
 };
 
-TriangleDistance::TriangleDistance(const TriangleMesh& mesh, const std::string& what) : tree_(std::make_unique<Tree>()) {
+TriangleDistance::TriangleDistance(const TriangleMesh& mesh, const std::string& what)
+    : tree_(std::make_unique<Tree>()) {
   if (mesh.faceCount() == 0) throw Error(what + ": the mesh has no faces");
   tree_->triangles.reserve(static_cast<size_t>(mesh.faceCount()));
   for (int f = 0; f < mesh.faceCount(); ++f) {

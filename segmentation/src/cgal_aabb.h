@@ -1,10 +1,9 @@
 #pragma once
 // CGAL adapter (private to msk_segmentation): exact point-to-triangle distances to a triangle mesh through CGAL's AABB
 // tree, for the metrics and the surface proximity of scenes. CGAL stays in cgal_aabb.cpp.
+#include <Eigen/Core>
 #include <memory>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 

@@ -1,5 +1,6 @@
 #include "msk/segmentation/metrics.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,8 +9,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "cgal_aabb.h"
 #include "msk/core/error.h"
@@ -230,7 +229,8 @@ AreaSamples sampleByArea(const TriangleMesh& mesh, double perMm2) {
     // Uniform point in a triangle: P = (1−√r1)·A + √r1(1−r2)·B + √r1·r2·C (Osada et al. 2002, eq. 1).
     const double r1 = std::sqrt(unit(rng)), r2 = unit(rng);
     s.points.row(n) = (1 - r1) * mesh.vertices.row(mesh.faces(f, 0)) +
-                      r1 * (1 - r2) * mesh.vertices.row(mesh.faces(f, 1)) + r1 * r2 * mesh.vertices.row(mesh.faces(f, 2));
+                      r1 * (1 - r2) * mesh.vertices.row(mesh.faces(f, 1)) +
+                      r1 * r2 * mesh.vertices.row(mesh.faces(f, 2));
   }
   return s;
 }
@@ -279,15 +279,18 @@ SegmentationMetrics labelMetrics(const LabelMap& a, int32_t labelA, const LabelM
 }
 
 SegmentationMetrics meshMetrics(const TriangleMesh& a, const TriangleMesh& b, double voxelMm, double samplesPerMm2) {
-  if (!(voxelMm > 0) || !std::isfinite(voxelMm)) throw ParameterError("voxelMm", std::to_string(voxelMm), "must be > 0");
+  if (!(voxelMm > 0) || !std::isfinite(voxelMm))
+    throw ParameterError("voxelMm", std::to_string(voxelMm), "must be > 0");
   if (!(samplesPerMm2 > 0) || !std::isfinite(samplesPerMm2))
     throw ParameterError("samplesPerMm2", std::to_string(samplesPerMm2), "must be > 0");
   if (const std::string p = closedMeshProblem(a); !p.empty()) throw Error("meshMetrics: mesh A: " + p);
   if (const std::string p = closedMeshProblem(b); !p.empty()) throw Error("meshMetrics: mesh B: " + p);
 
   // Common axis-aligned grid over both bounding boxes plus 2 voxels on every side.
-  const Eigen::Vector3d lo = a.vertices.colwise().minCoeff().transpose().cwiseMin(b.vertices.colwise().minCoeff().transpose());
-  const Eigen::Vector3d hi = a.vertices.colwise().maxCoeff().transpose().cwiseMax(b.vertices.colwise().maxCoeff().transpose());
+  const Eigen::Vector3d lo =
+      a.vertices.colwise().minCoeff().transpose().cwiseMin(b.vertices.colwise().minCoeff().transpose());
+  const Eigen::Vector3d hi =
+      a.vertices.colwise().maxCoeff().transpose().cwiseMax(b.vertices.colwise().maxCoeff().transpose());
   Grid grid;
   grid.spacing.setConstant(voxelMm);
   grid.origin = lo.array() - 2 * voxelMm;

@@ -165,8 +165,8 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
   st.targets = std::make_unique<TargetConstraints>(opts.image.stiffness);
   st.prior.reset();
   if (model.globalPrior)
-    st.prior = std::make_unique<ShapeMatchingConstraint>(shape->positions,
-                                                         model.priorTransform.value_or(opts.shape.priorTransform), opts.shape.priorStart);
+    st.prior = std::make_unique<ShapeMatchingConstraint>(
+        shape->positions, model.priorTransform.value_or(opts.shape.priorTransform), opts.shape.priorStart);
   st.radial.reset();
   st.centering.reset();
   if (model.medialAxis) {
@@ -177,8 +177,9 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     st.axis = buildMedialAxis(refine ? trianglesFromSimplex(st.current) : ref.triangles, mo);
     if (shape != &ref.simplex && !refine) st.axis.curve.positions = st.bentByStage(st.axis.curve.positions);
     st.attachment = attachToAxis(shape->positions, st.axis.curve.positions);
-    const Eigen::Matrix4d fit = fitTransform(shape->positions, st.current.positions,
-                                             Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Similarity);
+    const Eigen::Matrix4d fit =
+        fitTransform(shape->positions, st.current.positions, Eigen::VectorXd::Ones(ref.simplex.vertexCount()),
+                     PriorTransform::Similarity);
     st.axisStart = ((st.axis.curve.positions * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
                     fit.topRightCorner<3, 1>().transpose());
   }
@@ -191,8 +192,9 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
       st.volStart = st.volFinal;
     } else {
       const int nt = st.volume->tetCount();
-      const Eigen::Matrix4d fit = fitTransform(ref.simplex.positions, st.current.positions,
-                                               Eigen::VectorXd::Ones(ref.simplex.vertexCount()), PriorTransform::Affine);
+      const Eigen::Matrix4d fit =
+          fitTransform(ref.simplex.positions, st.current.positions, Eigen::VectorXd::Ones(ref.simplex.vertexCount()),
+                       PriorTransform::Affine);
       st.volStart = (st.volume->simplex.positions.topRows(nt) * fit.topLeftCorner<3, 3>().transpose()).rowwise() +
                     fit.topRightCorner<3, 1>().transpose();
     }
@@ -209,7 +211,8 @@ void buildAxisSets(ObjectState& st, const SegmentOptions& opts) {
   const ObjectModel& model = st.obj->model;
   const double gamma = model.radialStiffness >= 0 ? model.radialStiffness : opts.axis.radialStiffness;
   st.radial = std::make_unique<RadialConstraints>(st.attachment, st.axisFirst, gamma);
-  st.centering = std::make_unique<AxisCentering>(st.attachment, st.axisFirst, st.axis.curve.vertexCount(), opts.axis.centering);
+  st.centering =
+      std::make_unique<AxisCentering>(st.attachment, st.axisFirst, st.axis.curve.vertexCount(), opts.axis.centering);
   st.radial->setFirstParticle(st.first);
   st.centering->setFirstParticle(st.first);
 }

@@ -12,7 +12,8 @@ namespace msk::detail {
 
 void settleVolumeMesh(ObjectResult& out, const Eigen::VectorXd& restVolumes, const Eigen::VectorXi& surfaceNode) {
   MSK_ASSERT(surfaceNode.size() == out.mesh.vertexCount(), "volume model: tet boundary does not match the surface");
-  for (Eigen::Index v = 0; v < surfaceNode.size(); ++v) out.volumeMesh.nodes.row(surfaceNode[v]) = out.mesh.vertices.row(v);
+  for (Eigen::Index v = 0; v < surfaceNode.size(); ++v)
+    out.volumeMesh.nodes.row(surfaceNode[v]) = out.mesh.vertices.row(v);
   untangleTetMesh(out.volumeMesh, restVolumes.cwiseMax(1e-3 * std::fabs(restVolumes.mean())),
                   0.1 * meanEdgeLength(out.mesh));
   improveWorstTetShapes(out.volumeMesh, 0.3);
@@ -23,9 +24,8 @@ void settleVolumeMesh(ObjectResult& out, const Eigen::VectorXd& restVolumes, con
 
 void finishObject(ObjectState& st, bool unfold) {
   st.current.pointData.clear();
-  st.current.pointData["image_residual_mm"] = st.residual.size() == st.current.vertexCount()
-                                                  ? st.residual
-                                                  : Eigen::VectorXd::Zero(st.current.vertexCount());
+  st.current.pointData["image_residual_mm"] =
+      st.residual.size() == st.current.vertexCount() ? st.residual : Eigen::VectorXd::Zero(st.current.vertexCount());
   ObjectResult& out = st.out;
   out.mesh = trianglesFromSimplex(st.current);
   if (unfold) {
@@ -40,18 +40,19 @@ void finishObject(ObjectState& st, bool unfold) {
     all.topRows(st.volume->tetCount()) = st.volFinal;
     all.bottomRows(st.volume->ghostCount()) = st.current.positions;
     all = relaxVolumeSimplexTets(*st.volume, all);  // the tets' equilibrium with the final surface (no lag)
-    // Boundary nodes on the evolved surface's vertices (the tet boundary is the surface's triangulation, prepareObject),
-    // interior nodes by least squares from the simplex vertices.
+    // Boundary nodes on the evolved surface's vertices (the tet boundary is the surface's triangulation,
+    // prepareObject), interior nodes by least squares from the simplex vertices.
     const TetMesh rest = tetsFromVolumeSimplex(*st.volume, st.volume->simplex.positions);
     tetBoundary(rest, &st.volSurfaceNode);
     st.volRestVolumes = tetVolumes(rest);
-    MSK_ASSERT(st.volSurfaceNode.size() == out.mesh.vertexCount(), "volume model: tet boundary does not match the surface");
+    MSK_ASSERT(st.volSurfaceNode.size() == out.mesh.vertexCount(),
+               "volume model: tet boundary does not match the surface");
     out.volumeMesh = tetsFromVolumeSimplex(*st.volume, all, st.volSurfaceNode, out.mesh.vertices);
     settleVolumeMesh(out, st.volRestVolumes, st.volSurfaceNode);
     if (st.volumeHold)
       out.volumeDecision = st.volumeHold->decision() == VolumeDecision::Holding     ? "holding"
                            : st.volumeHold->decision() == VolumeDecision::Following ? "following"
-                                                                                     : "observing";
+                                                                                    : "observing";
   }
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);

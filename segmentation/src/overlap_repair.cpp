@@ -1,10 +1,9 @@
 #include "msk/segmentation/overlap_repair.h"
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <memory>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/collision_surface.h"
 #include "msk/core/error.h"
@@ -65,7 +64,8 @@ OverlapRepairReport repairOverlapVoxels(const std::vector<TriangleMesh*>& surfac
     std::vector<Points> shift(surfaces.size());
     for (const auto& [voxel, k] : shared) {
       const Eigen::Index v = static_cast<Eigen::Index>(voxel);
-      const Eigen::Vector3d c = grid.toWorld(Eigen::Vector3d(double(v % nx), double((v / nx) % ny), double(v / (nx * ny))));
+      const Eigen::Vector3d c =
+          grid.toWorld(Eigen::Vector3d(double(v % nx), double((v / nx) % ny), double(v / (nx * ny))));
       SurfacePoint best;
       int owner = -1;
       for (int o : {pairs[k].first, pairs[k].second}) {

@@ -5,11 +5,10 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <optional>
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"

@@ -1,12 +1,11 @@
 #include "msk/segmentation/scene.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
 #include <set>
-
-#include <Eigen/LU>
 
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
@@ -19,8 +18,8 @@ namespace msk {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"objects", "collisions", "description", "provenance"};
-const std::vector<std::string> kObjectKeys = {"name",  "label", "kind", "template", "polarity",
-                                              "force", "model", "profiles_from"};
+const std::vector<std::string> kObjectKeys = {"name",     "label", "kind",  "template",
+                                              "polarity", "force", "model", "profiles_from"};
 const std::vector<std::string> kModelKeys = {"shape_memory", "internal_stiffness", "global_prior",    "image_force",
                                              "medial_axis",  "radial_stiffness",   "axis_spacing_mm", "axis_first",
                                              "volumetric",   "volume_stiffness",   "refine",          "remesh"};
@@ -81,7 +80,8 @@ class Checker {
   const bool* boolean(const Json& obj, const std::string& key, const std::string& where, bool* store) const {
     const Json* v = jsonMember(obj, key);
     if (!v) return nullptr;
-    if (!v->is_boolean()) fail(where, "\"" + key + "\" must be true or false, found " + v->type_name() + " " + shown(*v));
+    if (!v->is_boolean())
+      fail(where, "\"" + key + "\" must be true or false, found " + v->type_name() + " " + shown(*v));
     *store = v->get<bool>();
     return store;
   }
@@ -229,8 +229,9 @@ std::optional<Eigen::Matrix4d> parseProfileSource(const Checker& check, const Js
       check.fail(at, "\"matrix\" is singular (its 3x3 part has no inverse)");
   }
   if (obj.model.imageForce != TargetMode::Profile)
-    check.fail(where, "\"profiles_from\" is given but the image force is gradient (profiles are learned only by the "
-                      "profile force: set \"force\": \"profile\")");
+    check.fail(where,
+               "\"profiles_from\" is given but the image force is gradient (profiles are learned only by the "
+               "profile force: set \"force\": \"profile\")");
   return p;
 }
 
@@ -347,7 +348,8 @@ std::map<std::pair<int, int>, size_t> parseCollisions(const Checker& check, cons
       }
       const Json* pair = &e;
       if (e.is_object()) {
-        if (!jsonMember(e, "pair")) check.fail(where, "an object entry needs \"pair\": [\"a\", \"b\"] or \"auto\": true");
+        if (!jsonMember(e, "pair"))
+          check.fail(where, "an object entry needs \"pair\": [\"a\", \"b\"] or \"auto\": true");
         pair = jsonMember(e, "pair");
       }
       if (!pair->is_array() || pair->size() != 2 || !(*pair)[0].is_string() || !(*pair)[1].is_string())
@@ -433,9 +435,12 @@ ObjectModel defaultModel(ObjectKind k) {
 
 const char* objectKindName(ObjectKind k) {
   switch (k) {
-    case ObjectKind::Bone: return "bone";
-    case ObjectKind::Muscle: return "muscle";
-    case ObjectKind::Generic: return "generic";
+    case ObjectKind::Bone:
+      return "bone";
+    case ObjectKind::Muscle:
+      return "muscle";
+    case ObjectKind::Generic:
+      return "generic";
   }
   return "?";
 }
@@ -485,14 +490,16 @@ Json modelJson(const ObjectModel& m, ObjectKind kind) {
   const ObjectModel d = defaultModel(kind);
   Json j = Json::object();
   if (m.shapeMemory != d.shapeMemory)
-    j["shape_memory"] = !m.shapeMemory ? Json(false)
-                                       : Json(*m.shapeMemory == InternalMode::ShapeMemory ? "template" : "smoothing");
+    j["shape_memory"] =
+        !m.shapeMemory ? Json(false) : Json(*m.shapeMemory == InternalMode::ShapeMemory ? "template" : "smoothing");
   if (m.internalStiffness >= 0) j["internal_stiffness"] = m.internalStiffness;
   if (!m.globalPrior) {
     j["global_prior"] = false;
   } else if (m.priorTransform) {
     const PriorTransform t = *m.priorTransform;
-    j["global_prior"] = t == PriorTransform::Rigid ? "rigid" : t == PriorTransform::Similarity ? "similarity" : "affine";
+    j["global_prior"] = t == PriorTransform::Rigid        ? "rigid"
+                        : t == PriorTransform::Similarity ? "similarity"
+                                                          : "affine";
   }
   if (m.medialAxis != d.medialAxis) j["medial_axis"] = m.medialAxis;
   if (m.radialStiffness >= 0) j["radial_stiffness"] = m.radialStiffness;
@@ -562,7 +569,8 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
   Json collisions = Json::array();
   for (const CollisionPair& p : scene.collisions) {
     if (p.fromAuto) continue;
-    const Json names = Json::array({scene.objects[static_cast<size_t>(p.a)].name, scene.objects[static_cast<size_t>(p.b)].name});
+    const Json names =
+        Json::array({scene.objects[static_cast<size_t>(p.a)].name, scene.objects[static_cast<size_t>(p.b)].name});
     Json entry = Json::object();
     entry["pair"] = names;
     collisions.push_back(pairParametersJson(p, entry) ? entry : names);
@@ -573,8 +581,10 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
     entry["within_mm"] = scene.autoCollisions->withinMm;
     const bool parameters = pairParametersJson(scene.autoCollisions->parameters, entry);
     const bool plain = !parameters && scene.autoCollisions->withinMm == kAutoWithinMm;
-    if (collisions.empty() && plain) out["collisions"] = "auto";
-    else collisions.push_back(entry);
+    if (collisions.empty() && plain)
+      out["collisions"] = "auto";
+    else
+      collisions.push_back(entry);
   }
   if (!collisions.empty()) out["collisions"] = collisions;
   if (!scene.description.empty()) out["description"] = scene.description;

@@ -17,9 +17,12 @@ Quality parseQuality(const std::string& t) {
 
 const char* qualityName(Quality q) {
   switch (q) {
-    case Quality::Fast: return "fast";
-    case Quality::Balanced: return "balanced";
-    case Quality::Accurate: return "accurate";
+    case Quality::Fast:
+      return "fast";
+    case Quality::Balanced:
+      return "balanced";
+    case Quality::Accurate:
+      return "accurate";
   }
   return "?";
 }
@@ -33,9 +36,12 @@ PriorTransform parsePriorTransform(const std::string& t, const std::string& opti
 
 const char* priorTransformName(PriorTransform t) {
   switch (t) {
-    case PriorTransform::Rigid: return "rigid";
-    case PriorTransform::Similarity: return "similarity";
-    case PriorTransform::Affine: return "affine";
+    case PriorTransform::Rigid:
+      return "rigid";
+    case PriorTransform::Similarity:
+      return "similarity";
+    case PriorTransform::Affine:
+      return "affine";
   }
   return "?";
 }
@@ -127,13 +133,29 @@ ResolvedSettings resolveSettings(const SegmentOptions& o, const Grid& grid) {
   Scheme scheme = Scheme::GaussSeidel;
   switch (e.quality) {
     case Quality::Fast:  // one level: no coarse search, one image scale (capture range ± 1.5 voxels only)
-      levels = 1; steps = 15; tolFactor = 0.04; scheme = Scheme::Xpbd; substeps = 2; iterations = 2;
+      levels = 1;
+      steps = 15;
+      tolFactor = 0.04;
+      scheme = Scheme::Xpbd;
+      substeps = 2;
+      iterations = 2;
       break;
     case Quality::Balanced:
-      levels = 2; steps = 50; tolFactor = 0.02; scheme = Scheme::GaussSeidel; substeps = 1; iterations = 1;
+      levels = 2;
+      steps = 50;
+      tolFactor = 0.02;
+      scheme = Scheme::GaussSeidel;
+      substeps = 1;
+      iterations = 1;
       break;
-    case Quality::Accurate:  // a tight tolerance and a lighter finest blur (sigmaFineVoxels): the least surface distance
-      levels = 3; steps = 200; tolFactor = 0.004; scheme = Scheme::Xpbd; substeps = 2; iterations = 2;
+    case Quality::Accurate:  // a tight tolerance and a lighter finest blur (sigmaFineVoxels): the least surface
+                             // distance
+      levels = 3;
+      steps = 200;
+      tolFactor = 0.004;
+      scheme = Scheme::Xpbd;
+      substeps = 2;
+      iterations = 2;
       break;
   }
   s.levels = e.levels > 0 ? e.levels : levels;

@@ -149,7 +149,8 @@ Json objectJson(const ObjectResult& o) {
     vm["tets"] = o.volumeMesh.tetCount();
     vm["volume_mm3"] = o.volumeModelMm3;
     vm["template_volume_mm3"] = o.volumeModelTemplateMm3;
-    if (o.volumeModelTemplateMm3 > 0) vm["volume_change_percent"] = 100.0 * (o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0);
+    if (o.volumeModelTemplateMm3 > 0)
+      vm["volume_change_percent"] = 100.0 * (o.volumeModelMm3 / o.volumeModelTemplateMm3 - 1.0);
     vm["volume_decision"] = o.volumeDecision;
     j["volume_model"] = vm;
   }
@@ -194,7 +195,8 @@ Json segmentReport(const SegmentationResult& res, const Scene& scene, const Segm
   for (size_t k = 0; k < scene.collisions.size(); ++k) {
     const CollisionPair& cp = scene.collisions[k];
     Json pj;
-    pj["objects"] = Json::array({scene.objects[static_cast<size_t>(cp.a)].name, scene.objects[static_cast<size_t>(cp.b)].name});
+    pj["objects"] =
+        Json::array({scene.objects[static_cast<size_t>(cp.a)].name, scene.objects[static_cast<size_t>(cp.b)].name});
     pj["gap_mm"] = cp.gapMm >= 0 ? cp.gapMm : opts.collision.gapMm;
     if (cp.proximityMm > 0) pj["proximity_mm"] = cp.proximityMm;
     pj["friction"] = cp.friction >= 0 ? cp.friction : opts.collision.friction;

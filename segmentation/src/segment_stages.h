@@ -91,10 +91,10 @@ struct ObjectState {
   std::optional<VolumeSimplexMesh> volume;
   std::unique_ptr<VolumeSimplexConstraints> volumeSet;
   std::unique_ptr<VolumePreservation> volumeHold;  ///< holds the template's volume unless the image demands another
-  int volFirst = 0;                 ///< first tet particle in the stacked system
-  Points volStart, volFinal;        ///< tet particles at the start and the end of the finest level
-  Eigen::VectorXd volRestVolumes;   ///< volumes of the volume model's rest tets, mm³ (finishObject())
-  Eigen::VectorXi volSurfaceNode;   ///< tet node of each vertex of the output surface (finishObject())
+  int volFirst = 0;                                ///< first tet particle in the stacked system
+  Points volStart, volFinal;                       ///< tet particles at the start and the end of the finest level
+  Eigen::VectorXd volRestVolumes;                  ///< volumes of the volume model's rest tets, mm³ (finishObject())
+  Eigen::VectorXi volSurfaceNode;                  ///< tet node of each vertex of the output surface (finishObject())
   // Axis-first stage (objects that run it): the coarsest template's axis and where the stage left it.
   Points stageAxisRef, stageAxis;  ///< empty without the stage
   Points axisEnd;  ///< axis particles where the last pass left them (a refinement pass's fixed objects keep them)
@@ -210,8 +210,8 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
 
 /// Takes each moving object's surface, axis and tets back from the solver after a pass, refuses a run that has blown
 /// up (size ×5 or ÷5 of its template level), and records the pass's report for it.
-void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed, const Solver& solver, int l,
-                 int order, const LevelReport& report);
+void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed, const Solver& solver, int l, int order,
+                 const LevelReport& report);
 
 // ---- object_output.cpp: one object's result
 

@@ -12,9 +12,12 @@ namespace msk {
 
 const char* polarityName(Polarity p) {
   switch (p) {
-    case Polarity::Auto: return "auto";
-    case Polarity::DarkInside: return "dark-inside";
-    case Polarity::BrightInside: return "bright-inside";
+    case Polarity::Auto:
+      return "auto";
+    case Polarity::DarkInside:
+      return "dark-inside";
+    case Polarity::BrightInside:
+      return "bright-inside";
   }
   return "?";
 }
@@ -56,7 +59,8 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
               const Grid& grid, const ProgressFn& progress) {
   const ResolvedSettings& rs = res.settings;
   const int coarsest = rs.levels - 1;
-  const bool anyRefines = std::any_of(objs.begin(), objs.end(), [&](const ObjectState& st) { return st.refines(opts); });
+  const bool anyRefines =
+      std::any_of(objs.begin(), objs.end(), [&](const ObjectState& st) { return st.refines(opts); });
   const int passes = rs.levels + (anyRefines ? 1 : 0);
   const int totalSteps = passes * rs.maxStepsPerLevel;
   const int rampSteps = rs.levels * rs.maxStepsPerLevel;  // the prior's ramp spans the levels; refinement is at its end

@@ -43,8 +43,8 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
   return rep;
 }
 
-void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed, const Solver& solver, int l,
-                 int order, const LevelReport& report) {
+void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed, const Solver& solver, int l, int order,
+                 const LevelReport& report) {
   for (size_t i = 0; i < objs.size(); ++i) {
     if (fixed[i]) continue;
     ObjectState& st = objs[i];

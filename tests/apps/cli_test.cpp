@@ -1,16 +1,17 @@
 // End-to-end tests of the mskseg program: exit codes, one-line errors naming the file, no partial output.
+#include "msk/test/cli.h"
+
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 
-#include <gtest/gtest.h>
-
-#include "msk/imaging/json.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/test/files.h"
-#include "msk/test/cli.h"
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;
@@ -43,7 +44,8 @@ TEST(Cli, HelpVersionAndUsageErrors) {
   expectOneLineError(runCli({"info", "--bogus", "x"}), 2, "", "unknown option or unexpected argument: --bogus");
   expectOneLineError(runCli({"phantom", "--seed", "1"}), 2, "", "--out is required");
   expectOneLineError(runCli({"phantom", "--out", "/tmp/x", "--noise", "abc"}), 2, "", "--noise");
-  for (const char* c : {"info", "phantom", "eval", "rasterize", "convert"}) EXPECT_EQ(runCli({c, "--help"}).exitCode, 0);
+  for (const char* c : {"info", "phantom", "eval", "rasterize", "convert"})
+    EXPECT_EQ(runCli({c, "--help"}).exitCode, 0);
 }
 
 TEST(Cli, InfoDescribesVolumeAndMesh) {
@@ -187,7 +189,8 @@ TEST(Cli, PhantomRasterizeEvalPipeline) {
 
   // Mesh-to-mesh: the truth femur against itself converted to another format.
   ASSERT_EQ(runCli({"convert", out + "/truth_femur.vtk", dir.file("f.stl")}).exitCode, 0);
-  CliResult mm = runCli({"eval", "--result", dir.file("f.stl"), "--reference", out + "/truth_femur.vtk", "--json", "-"});
+  CliResult mm =
+      runCli({"eval", "--result", dir.file("f.stl"), "--reference", out + "/truth_femur.vtk", "--json", "-"});
   ASSERT_EQ(mm.exitCode, 0) << mm.err;
   // stdout is the JSON alone (no table before it), so it pipes into a JSON reader.
   EXPECT_LT(msk::parseJson(mm.out).at("metrics")[0].at("assd_mm").get<double>(), 1e-3);
@@ -195,8 +198,8 @@ TEST(Cli, PhantomRasterizeEvalPipeline) {
 
 TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
   ScratchDir dir;
-  for (auto args : std::vector<std::vector<std::string>>{{"--spacing", "0,1,1"}, {"--noise", "-1"}, {"--bias", "5"},
-                                                          {"--spacing", "1,1"}}) {
+  for (auto args : std::vector<std::vector<std::string>>{
+           {"--spacing", "0,1,1"}, {"--noise", "-1"}, {"--bias", "5"}, {"--spacing", "1,1"}}) {
     std::vector<std::string> cmd = {"phantom", "--out", dir.file("p")};
     cmd.insert(cmd.end(), args.begin(), args.end());
     CliResult r = runCli(cmd);

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "msk/imaging/json.h"
-#include "msk/test/files.h"
 #include "msk/test/cli.h"
+#include "msk/test/files.h"
 
 namespace fs = std::filesystem;
 using msk::test::runCli;
@@ -92,7 +92,8 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   ASSERT_EQ(metrics.size(), 3u);
   EXPECT_EQ(metrics[2][1], "femur_own_scene");
   const msk::Json report = msk::readJsonFile(out + "/p01/report.json");
-  EXPECT_EQ(report.at("parameters").at("quality").get<std::string>(), "fast");  // the forwarded options reached the case
+  EXPECT_EQ(report.at("parameters").at("quality").get<std::string>(),
+            "fast");  // the forwarded options reached the case
   const msk::Json batch = msk::readJsonFile(out + "/batch.json");
   EXPECT_EQ(batch.at("cases").at("ok").get<int>(), 2);
   EXPECT_EQ(batch.at("cases").at("failed").get<int>(), 1);

@@ -11,8 +11,8 @@
 
 #include "msk/imaging/json.h"
 #include "msk/segmentation/qc_pictures.h"
-#include "msk/test/files.h"
 #include "msk/test/cli.h"
+#include "msk/test/files.h"
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;
@@ -54,8 +54,8 @@ TEST(BenchCli, SmallSceneRunPrintsStagesAndWritesFigures) {
   const CliResult r = runCli({"bench", "scene", "--structures", "4", "--quality", "fast", "--spacing", "2.4,2.4,4",
                               "--vertices", "500", "--out", out, "--quiet"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
-  for (const char* word : {"time per stage", "generation", "features", "evolution", "rasterise", "peak memory",
-                           "femur", "adductors", "overlap voxels", "penetration"})
+  for (const char* word : {"time per stage", "generation", "features", "evolution", "rasterise", "peak memory", "femur",
+                           "adductors", "overlap voxels", "penetration"})
     EXPECT_NE(r.out.find(word), std::string::npos) << word << "\n" << r.out;
   ASSERT_TRUE(fs::exists(out + "/bench.json"));
   ASSERT_TRUE(fs::exists(out + "/objects.csv"));

@@ -4,12 +4,12 @@
 #include <filesystem>
 #include <string>
 
-#include "msk/imaging/json.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/scene.h"
-#include "msk/test/files.h"
 #include "msk/test/cli.h"
+#include "msk/test/files.h"
 
 namespace fs = std::filesystem;
 using msk::test::runCli;
@@ -94,6 +94,7 @@ TEST(SceneCli, BadInputIsOneLineAndLeavesNoOutput) {
   check({"--objects", "femur:1,quads:1"}, 2, "", "also femur's");
   check({"--objects", "femur:1:bone,femur:2"}, 2, "", "given twice");
   check({"--objects", "femur:1:bones"}, 2, "", "not a label");
-  check({"--objects", "femur:1", "--mirror-x", "0", "--midline-label", "2"}, 2, "", "--mirror-x excludes --midline-label");
+  check({"--objects", "femur:1", "--mirror-x", "0", "--midline-label", "2"}, 2, "",
+        "--mirror-x excludes --midline-label");
   check({"--objects", "femur:1", "--collisions", "some"}, 2, "", "--collisions");
 }

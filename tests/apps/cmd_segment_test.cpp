@@ -1,19 +1,19 @@
 // mskseg segment end to end: outputs, report contents, and bad input.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
 
-#include <gtest/gtest.h>
-
-#include "msk/imaging/json.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
+#include "msk/test/cli.h"
 #include "msk/test/files.h"
 #include "msk/test/tet_surface.h"
-#include "msk/test/cli.h"
 
 namespace fs = std::filesystem;
 using msk::test::runCli;
@@ -23,8 +23,9 @@ const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-s
 
 std::string femurScene(const msk::test::ScratchDir& dir, const std::string& extra = "") {
   const std::string path = dir.file("scene.json");
-  msk::test::writeBytes(path, "{\"objects\": [{\"name\": \"femur\", \"label\": 1, \"kind\": \"bone\", \"template\": \"" +
-                                  kSample + "template_femur.vtk\"" + extra + "}]}");
+  msk::test::writeBytes(
+      path, "{\"objects\": [{\"name\": \"femur\", \"label\": 1, \"kind\": \"bone\", \"template\": \"" + kSample +
+                "template_femur.vtk\"" + extra + "}]}");
   return path;
 }
 /// The written tet mesh OUT/NAME.vtu is valid, LPS-tagged, has no inverted tet, and its boundary nodes are the
@@ -36,8 +37,7 @@ void expectTetMeshOnItsSurface(const std::string& out, const std::string& name) 
   EXPECT_EQ(space, msk::MeshSpace::LPS);
   EXPECT_EQ(msk::tetMeshProblem(tets), "");
   EXPECT_GT(msk::tetVolumes(tets).minCoeff(), 0.0) << name;
-  const msk::test::TetSurfaceOffsets o =
-      msk::test::tetSurfaceOffsets(tets, msk::readMesh(out + "/" + name + ".vtk"));
+  const msk::test::TetSurfaceOffsets o = msk::test::tetSurfaceOffsets(tets, msk::readMesh(out + "/" + name + ".vtk"));
   ASSERT_EQ(o.boundaryNodes, o.surfaceVertices) << name;
   EXPECT_LE(o.largestMm, 0.1 * o.meanEdgeMm + 1e-3) << name;
   EXPECT_LT(o.offSurface, o.surfaceVertices / 25) << name;  // measured: femur alone 0 of 771, quadriceps 0 of 1953
@@ -139,8 +139,9 @@ TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
 TEST(SegmentCli, VolumetricObjectWritesItsTetMesh) {
   msk::test::ScratchDir dir;
   const std::string out = dir.file("out");
-  const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
-                         femurScene(dir, ", \"model\": {\"volumetric\": true, \"volume_stiffness\": 0.5}"), "--out", out});
+  const auto r =
+      runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
+              femurScene(dir, ", \"model\": {\"volumetric\": true, \"volume_stiffness\": 0.5}"), "--out", out});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const msk::Json rep = msk::readJsonFile(out + "/report.json");
   EXPECT_EQ(rep.at("volume_models_built").get<int>(), 1);
@@ -172,8 +173,8 @@ TEST(SegmentCli, VolumetricMuscleAmongPartnersFollowsItsSeparatedSurface) {
   }
   msk::test::writeBytes(dir.file("scene.json"), scene);
   const std::string out = dir.file("out");
-  const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", dir.file("scene.json"), "--out", out,
-                         "--quality", "fast", "--no-qc"});
+  const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", dir.file("scene.json"), "--out",
+                         out, "--quality", "fast", "--no-qc"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const msk::Json rep = msk::readJsonFile(out + "/report.json");
   EXPECT_EQ(rep.at("volume_models_built").get<int>(), 1);

@@ -10,8 +10,8 @@
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
-#include "msk/test/files.h"
 #include "msk/test/cli.h"
+#include "msk/test/files.h"
 
 namespace fs = std::filesystem;
 using msk::test::CliResult;

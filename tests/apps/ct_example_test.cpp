@@ -1,8 +1,8 @@
 // scripts/ct-example.sh, the real CT scene from the command line alone, runs and gives the CT test's accuracy.
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "msk/imaging/json.h"
 #include "msk/test/files.h"

@@ -1,9 +1,9 @@
 #include "msk/core/collision_constraint.h"
 
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <random>
 
 #include "msk/core/error.h"
 #include "msk/core/triangle_mesh.h"

@@ -14,13 +14,13 @@
 #include <vector>
 
 #include "msk/core/collision_constraint.h"
-#include "msk/core/shape_matching_constraint.h"
-#include "msk/core/target_constraint.h"
-#include "msk/core/error.h"
-#include "msk/core/solver.h"
-#include "msk/core/triangle_mesh.h"
 #include "msk/core/constraint_set.h"
+#include "msk/core/error.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/solver.h"
+#include "msk/core/target_constraint.h"
 #include "msk/core/transform_fit.h"
+#include "msk/core/triangle_mesh.h"
 
 namespace {
 
@@ -138,8 +138,10 @@ TEST(CollisionResponse, EveryModeTargetAndResolutionConservesLinearMomentum) {
         EXPECT_TRUE(moved) << label(r) << ": nothing corrected";
         EXPECT_LT(momentumError(s.p, p, w), 1e-9) << label(r);
         EXPECT_LT(momentumError(v, vel, w), 1e-9) << label(r);
-        if (mode == CollisionMode::Position) EXPECT_TRUE(vel.isApprox(v)) << label(r);
-        else EXPECT_TRUE(p.isApprox(s.p)) << label(r);
+        if (mode == CollisionMode::Position)
+          EXPECT_TRUE(vel.isApprox(v)) << label(r);
+        else
+          EXPECT_TRUE(p.isApprox(s.p)) << label(r);
       }
 }
 
@@ -184,8 +186,9 @@ TEST(CollisionResponse, TwoSpheresPushedIntoEachOtherEndApartUnderEveryMode) {
       deepest = std::max(deepest, depth(solver.positions()));
     }
     const double end = depth(solver.positions());
-    const double centres = (solver.positions().bottomRows(s.nb).colwise().mean() -
-                            solver.positions().topRows(s.na).colwise().mean()).norm();
+    const double centres =
+        (solver.positions().bottomRows(s.nb).colwise().mean() - solver.positions().topRows(s.na).colwise().mean())
+            .norm();
     EXPECT_LE(end, 0.1) << label(r);
     EXPECT_GT(centres, 18.0) << label(r);  // they did not pass through each other
   }
@@ -250,8 +253,10 @@ TEST(CollisionResponse, ReferenceKeepsTheRecordedDistance) {
       if (mode == CollisionMode::Position) {
         c.project(q, w);
       } else {
-        if (mode == CollisionMode::Velocity) c.correctVelocities(q, v, w, 0.5);
-        else c.correctBeforePrediction(q, v, w, 0.5);
+        if (mode == CollisionMode::Velocity)
+          c.correctVelocities(q, v, w, 0.5);
+        else
+          c.correctBeforePrediction(q, v, w, 0.5);
         q += 0.5 * v;  // the next prediction
       }
       EXPECT_NEAR(q(3, 2), 0.8, 1e-12) << msk::collisionModeName(mode) << " from " << moved;
@@ -420,7 +425,9 @@ TEST(CollisionResponse, PositionThresholdOfVelocityAndAccelerationModes) {
           msk::Points q = p;
           set.project(q, w);
           const bool pushed = depth > threshold;
-          if (pushed) EXPECT_GT(q.row(nb).norm(), 10.15) << label(r) << " depth " << depth;  // out, about the gap
-          else EXPECT_NEAR(q.row(nb).norm(), 10.0 - depth, 1e-12) << label(r) << " threshold " << threshold;
+          if (pushed)
+            EXPECT_GT(q.row(nb).norm(), 10.15) << label(r) << " depth " << depth;  // out, about the gap
+          else
+            EXPECT_NEAR(q.row(nb).norm(), 10.0 - depth, 1e-12) << label(r) << " threshold " << threshold;
         }
 }

@@ -1,8 +1,8 @@
 #include "msk/core/constraint_row.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "msk/core/medial_axis.h"
 #include "msk/core/triangle_mesh.h"

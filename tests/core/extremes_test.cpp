@@ -1,5 +1,8 @@
 // Stability at the extremes: the position-based solver and the constraint kernels under extreme stiffness,
 // time steps, masses, units, degenerate elements and injected NaNs, and the momentum they carry.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,21 +11,18 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
-
 #include "msk/core/collision_constraint.h"
-#include "msk/core/shape_matching_constraint.h"
-#include "msk/core/simplex_internal_constraint.h"
-#include "msk/core/target_constraint.h"
+#include "msk/core/constraint_set.h"
 #include "msk/core/error.h"
 #include "msk/core/medial_axis.h"
+#include "msk/core/shape_matching_constraint.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/solver.h"
+#include "msk/core/target_constraint.h"
+#include "msk/core/transform_fit.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
-#include "msk/core/constraint_set.h"
-#include "msk/core/transform_fit.h"
 #include "msk/test/shapes.h"
 #include "msk/test/solver_scenarios.h"
 
@@ -88,7 +88,6 @@ class NaNInjector : public msk::ConstraintSet {
   int at_;
 };
 
-
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------ stiffness
@@ -97,7 +96,8 @@ class NaNInjector : public msk::ConstraintSet {
 // or NaN values are refused with a ParameterError naming the parameter.
 TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
   const msk::SimplexMesh s = simplexSphere(10.0);
-  const msk::RadialAttachment att = msk::attachToAxis(s.positions, (msk::Points(2, 3) << 0, 0, -10, 0, 0, 10).finished());
+  const msk::RadialAttachment att =
+      msk::attachToAxis(s.positions, (msk::Points(2, 3) << 0, 0, -10, 0, 0, 10).finished());
   const msk::VolumeSimplexMesh vm = msk::volumeSimplexFromTets(msk::makeCubeTets(2, 1.0));
   for (const double g : {0.0, 1e-12, 1.0}) {
     EXPECT_NO_THROW(msk::SimplexInternalConstraints(s, g));
@@ -124,8 +124,20 @@ TEST(ExtremeStiffness, EndsOfTheRangeRunAndOutOfRangeIsRefused) {
     expectParameterError([&] { msk::VolumeSimplexConstraints c(vm, g); }, "volume stiffness");
     expectParameterError([&] { msk::CollisionConstraints c(0, 1, msk::simplexFanTriangles(s), 0.1, 1.0, g); },
                          "collision friction");
-    expectParameterError([&] { msk::SolverOptions o; o.damping = g; msk::Solver p(o); }, "damping");
-    expectParameterError([&] { msk::SolverOptions o; o.drag = g; msk::Solver p(o); }, "drag");
+    expectParameterError(
+        [&] {
+          msk::SolverOptions o;
+          o.damping = g;
+          msk::Solver p(o);
+        },
+        "damping");
+    expectParameterError(
+        [&] {
+          msk::SolverOptions o;
+          o.drag = g;
+          msk::Solver p(o);
+        },
+        "drag");
   }
 }
 
@@ -155,8 +167,20 @@ TEST(ExtremeTimeStep, TrajectoryDoesNotDependOnDt) {
   }
   EXPECT_LT(worst, 1e-8);
   for (const double dt : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
-    expectParameterError([&] { msk::SolverOptions o; o.dt = dt; msk::Solver p(o); }, "dt");
-  expectParameterError([&] { msk::SolverOptions o; o.iterations = 0; msk::Solver p(o); }, "iterations");
+    expectParameterError(
+        [&] {
+          msk::SolverOptions o;
+          o.dt = dt;
+          msk::Solver p(o);
+        },
+        "dt");
+  expectParameterError(
+      [&] {
+        msk::SolverOptions o;
+        o.iterations = 0;
+        msk::Solver p(o);
+      },
+      "iterations");
 }
 
 // ------------------------------------------------------------------------------------------------ masses
@@ -250,8 +274,8 @@ TEST(ExtremeUnits, MetresAndMillimetresGiveTheSameRun) {
     ta.setTargets(a.positions.rowwise() + Eigen::RowVector3d(2 * unit, 0, 0), Eigen::VectorXd::Ones(na));
     tb.setTargets(b.positions.rowwise() - Eigen::RowVector3d(2 * unit, 0, 0), Eigen::VectorXd::Ones(na));
     tb.setFirstParticle(na);
-    msk::CollisionConstraints ab(0, na, msk::Triangles(msk::simplexFanTriangles(b).array() + na), 0.2 * unit, 1.0 * unit,
-                                 0.0),
+    msk::CollisionConstraints ab(0, na, msk::Triangles(msk::simplexFanTriangles(b).array() + na), 0.2 * unit,
+                                 1.0 * unit, 0.0),
         ba(na, na, msk::simplexFanTriangles(a), 0.2 * unit, 1.0 * unit, 0.0);
     msk::Solver solver(msk::SolverOptions{});
     solver.prepare(p, Eigen::VectorXd::Ones(2 * na));
@@ -310,8 +334,10 @@ TEST(ExtremeElements, KernelsRefuseDegenerateInputOrStayFinite) {
   const double bary[3] = {0.2, 0.3, 0.5};
   ASSERT_TRUE(msk::collisionCorrection(Vec3(1, 2, 2.9), coincident, bary, Vec3(0, 0, 1), 0.2, 0.0, 1.0, w3, dp, dpi));
   EXPECT_TRUE(dp.allFinite() && dpi[0].allFinite() && dpi[1].allFinite() && dpi[2].allFinite());
-  EXPECT_FALSE(msk::collisionCorrection(Vec3(1, 2, 2.9), coincident, bary, Vec3(0, 0, 1), 0.2, 0.0, 0.0, zero3, dp, dpi));
-  EXPECT_FALSE(msk::collisionCorrection(Vec3(1, 2, 2.9), coincident, bary, Vec3(0, nan, 1), 0.2, 0.0, 1.0, w3, dp, dpi));
+  EXPECT_FALSE(
+      msk::collisionCorrection(Vec3(1, 2, 2.9), coincident, bary, Vec3(0, 0, 1), 0.2, 0.0, 0.0, zero3, dp, dpi));
+  EXPECT_FALSE(
+      msk::collisionCorrection(Vec3(1, 2, 2.9), coincident, bary, Vec3(0, nan, 1), 0.2, 0.0, 1.0, w3, dp, dpi));
   // Radial: P on the axis (no direction) refused; coincident axis vertices fine.
   const Vec3 q[2] = {{0, 0, 0}, {0, 0, 0}};
   const double c2[2] = {0.5, 0.5}, w2[2] = {1, 1};

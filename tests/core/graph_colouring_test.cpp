@@ -1,9 +1,9 @@
 #include "msk/core/graph_colouring.h"
 
+#include <gtest/gtest.h>
+
 #include <set>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/constraint_row.h"
 #include "msk/core/simplex_internal_constraint.h"

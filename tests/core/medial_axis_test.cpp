@@ -1,11 +1,11 @@
 #include "msk/core/medial_axis.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <Eigen/Geometry>
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"
@@ -332,8 +332,7 @@ namespace {
 /// A straight axis of `n` vertices along the tube's true axis, over ±0.9 of its half length.
 msk::Points straightAxis(const Tube& t, int n) {
   msk::Points q(n, 3);
-  for (int j = 0; j < n; ++j)
-    q.row(j) = (t.center + (-0.9 + 1.8 * j / (n - 1)) * t.half * t.axis).transpose();
+  for (int j = 0; j < n; ++j) q.row(j) = (t.center + (-0.9 + 1.8 * j / (n - 1)) * t.half * t.axis).transpose();
   return q;
 }
 
@@ -362,9 +361,9 @@ TEST(GeneralisedCylinder, ReferenceAndRigidAxesSweepTheMovedSurface) {
   EXPECT_LT((gc.surface(turned(ref)) - turned(t.mesh.vertices)).cwiseAbs().maxCoeff(), 1e-9);
   EXPECT_THROW(gc.surface(ref.topRows(5)), msk::Error);
   EXPECT_THROW(msk::GeneralisedCylinder(t.mesh.vertices.topRows(10), ref, att), msk::Error);
-  EXPECT_THROW(msk::GeneralisedCylinder(t.mesh.vertices, ref.topRows(2), msk::attachToAxis(t.mesh.vertices,
-                                                                                          ref.topRows(2))),
-               msk::Error);
+  EXPECT_THROW(
+      msk::GeneralisedCylinder(t.mesh.vertices, ref.topRows(2), msk::attachToAxis(t.mesh.vertices, ref.topRows(2))),
+      msk::Error);
 }
 
 // Bending the axis keeps every surface vertex at its reference radius from its attachment point (the radial

@@ -1,8 +1,8 @@
 #include "msk/core/shape_matching_constraint.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"

@@ -3,19 +3,19 @@
 // spheres with mixed, extreme and fixed masses and degenerate neighbourhoods, and the same rows are skipped.
 #include "msk/core/simplex_batch.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <random>
 
-#include <gtest/gtest.h>
-
-#include "msk/core/simplex_internal_constraint.h"
+#include "msk/core/constraint_row.h"
 #include "msk/core/error.h"
+#include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
-#include "msk/core/constraint_row.h"
 #include "msk/test/shapes.h"
 
 namespace {
@@ -175,9 +175,9 @@ TEST_P(SimplexBatchAgreement, SkipsTheRowsThePerRowPathSkips) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Spheres, SimplexBatchAgreement,
-                         ::testing::Values(Case{0.2, 0.0, 0.5},   // the benchmark's setting, unit masses
-                                           Case{0.2, 2.0, 1.0},   // masses over two decades, full stiffness
-                                           Case{0.8, 6.0, 0.7},   // rough surface, masses over six decades
+                         ::testing::Values(Case{0.2, 0.0, 0.5},    // the benchmark's setting, unit masses
+                                           Case{0.2, 2.0, 1.0},    // masses over two decades, full stiffness
+                                           Case{0.8, 6.0, 0.7},    // rough surface, masses over six decades
                                            Case{2.0, 1.0, 1.0}));  // neighbourhoods folded over
 
 TEST(SimplexBatch, SmallMeshesWithPartialPacksMatchTheSolver) {
@@ -308,8 +308,8 @@ TEST(SimplexBatch, LocalityOrderGivesBitwiseTheMeshOrderSweepsOnAShuffledMesh) {
     for (int v = 0; v < n; ++v) {
       ASSERT_GE(place[static_cast<size_t>(v)], 0);
       for (int j = 0; j < 3; ++j)
-        reach = std::max(reach, std::abs(place[static_cast<size_t>(v)] -
-                                         place[static_cast<size_t>(pr.reference.neighbors(v, j))]));
+        reach = std::max(
+            reach, std::abs(place[static_cast<size_t>(v)] - place[static_cast<size_t>(pr.reference.neighbors(v, j))]));
     }
     EXPECT_LT(reach, 4 * static_cast<int>(std::sqrt(n)));
     // Coloured: the wavefront (colouredSweep) and colour by colour, against the mesh order colour by colour.
@@ -349,12 +349,12 @@ TEST(SimplexBatch, LocalityOrderGivesBitwiseTheMeshOrderSweepsOnAShuffledMesh) {
       bt.applyRange(q[k], 0, n / 5);
       bt.applyRange(q[k], n / 5, n);
     }
-    EXPECT_TRUE(bitwiseEqual(q[0], q[1])) << "counted jacobi, largest difference "
-                                          << (q[0] - q[1]).cwiseAbs().maxCoeff();
+    EXPECT_TRUE(bitwiseEqual(q[0], q[1]))
+        << "counted jacobi, largest difference " << (q[0] - q[1]).cwiseAbs().maxCoeff();
     // The Solver: one thread (wavefront) and two (colour by colour, split) agree bitwise, in both schemes.
     for (msk::Scheme scheme : {msk::Scheme::ColouredGaussSeidel, msk::Scheme::Jacobi})
-      EXPECT_TRUE(bitwiseEqual(solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 1),
-                               solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 2)))
+      EXPECT_TRUE(
+          bitwiseEqual(solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 1), solverSweeps(pr, scheme, 3, 0.8, 1.5, true, 2)))
           << msk::schemeName(scheme);
   }
 }

@@ -1,10 +1,10 @@
 #include "msk/core/simplex_internal_constraint.h"
 
-#include <cmath>
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <random>
 
 #include "msk/test/shapes.h"
 

@@ -1,10 +1,10 @@
 #include "msk/core/simplex_mesh.h"
 
-#include <cmath>
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <random>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"

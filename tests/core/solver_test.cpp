@@ -2,13 +2,13 @@
 // determinism with threads, and stability at the extremes of stiffness, time step and mass.
 #include "msk/core/solver.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/collision_constraint.h"
 #include "msk/core/constraint_set.h"
@@ -136,8 +136,7 @@ TEST(SolverSchemes, InternalAndCollisionCorrectionsConserveLinearMomentum) {
       scale += v.row(i).norm() / w[i];
     }
     ASSERT_GT(scale, 1.0) << msk::schemeName(scheme);
-    EXPECT_LT(momentum.norm(), 1e-9 * scale) << msk::schemeName(scheme) << " relative "
-                                             << momentum.norm() / scale;
+    EXPECT_LT(momentum.norm(), 1e-9 * scale) << msk::schemeName(scheme) << " relative " << momentum.norm() / scale;
   }
 }
 

@@ -1,12 +1,12 @@
 #include "msk/core/tet_split.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <set>
 #include <utility>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 

@@ -1,10 +1,10 @@
 #include "msk/core/tet_untangle.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/core/tet_split.h"

@@ -1,10 +1,10 @@
 #include "msk/core/transform_fit.h"
 
-#include <random>
-#include <utility>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <random>
+#include <utility>
 
 #include "msk/test/shapes.h"
 

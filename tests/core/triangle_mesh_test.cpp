@@ -1,8 +1,8 @@
 #include "msk/core/triangle_mesh.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 TEST(TriangleMesh, IcosphereIsClosedAndApproximatesTheBall) {
   msk::TriangleMesh m = msk::makeIcosphere(10.0, 4, Eigen::Vector3d(1, 2, 3));

@@ -3,9 +3,9 @@
 // decision rule says.
 #include "msk/core/volume_preservation.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"

@@ -1,11 +1,11 @@
 #include "msk/core/volume_simplex.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <random>
-
-#include <Eigen/Dense>
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"
@@ -25,7 +25,6 @@ inline msk::Points volumeResiduals(const msk::VolumeSimplexMesh& model, const ms
 }
 
 using msk::test::uniformVector;
-
 
 /// Inverse masses: tets free (1), ghosts fixed (0).
 Eigen::VectorXd ghostsFixed(const msk::VolumeSimplexMesh& vm) {

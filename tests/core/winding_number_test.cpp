@@ -1,8 +1,8 @@
 #include "msk/core/winding_number.h"
 
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"
@@ -42,9 +42,10 @@ TEST(WindingNumber, ClusteredAgreesWithExactAwayFromTheSurface) {
 TEST(WindingNumber, CountsLayers) {
   const msk::TriangleMesh m = nestedSpheres();
   const msk::WindingNumber wn(m.vertices, m.faces);
-  for (const auto& [q, layers] : {std::pair{Eigen::Vector3d(1, 0, 0), 2.0}, std::pair{Eigen::Vector3d(1, 0, 3), 2.0},
-                                  std::pair{Eigen::Vector3d(-8, 0, 0), 1.0}, std::pair{Eigen::Vector3d(0, 8, 0), 1.0},
-                                  std::pair{Eigen::Vector3d(0, 0, 12), 0.0}, std::pair{Eigen::Vector3d(40, 3, 0), 0.0}}) {
+  for (const auto& [q, layers] :
+       {std::pair{Eigen::Vector3d(1, 0, 0), 2.0}, std::pair{Eigen::Vector3d(1, 0, 3), 2.0},
+        std::pair{Eigen::Vector3d(-8, 0, 0), 1.0}, std::pair{Eigen::Vector3d(0, 8, 0), 1.0},
+        std::pair{Eigen::Vector3d(0, 0, 12), 0.0}, std::pair{Eigen::Vector3d(40, 3, 0), 0.0}}) {
     EXPECT_NEAR(wn.exactAt(q), layers, 1e-9) << q.transpose();
     EXPECT_NEAR(wn.at(q), layers, 0.05) << q.transpose();
   }
@@ -75,11 +76,12 @@ TEST(WindingNumber, LivePositionsFollowTheMovedSurface) {
   }
   double exactMoved = 0;
   for (int t = 0; t < m.faceCount(); ++t)
-    exactMoved += msk::triangleWindingNumber(q, moved.row(m.faces(t, 0)).transpose(), moved.row(m.faces(t, 1)).transpose(),
-                                             moved.row(m.faces(t, 2)).transpose());
+    exactMoved +=
+        msk::triangleWindingNumber(q, moved.row(m.faces(t, 0)).transpose(), moved.row(m.faces(t, 1)).transpose(),
+                                   moved.row(m.faces(t, 2)).transpose());
   EXPECT_NEAR(exactMoved, 0.0, 1e-9);
-  EXPECT_TRUE(wn.inside(q));              // the stale surface
-  EXPECT_FALSE(wn.inside(q, moved));      // the moved one
+  EXPECT_TRUE(wn.inside(q));          // the stale surface
+  EXPECT_FALSE(wn.inside(q, moved));  // the moved one
   // The dipoles of the moved clusters near the dent are stale: about 0.1 off here, far from the ½ that decides.
   EXPECT_NEAR(wn.at(q, moved), 0.0, 0.15);
   EXPECT_NEAR(wn.at(Eigen::Vector3d(-5, 1, 0), moved), 1.0, 0.05);  // far from the dent: unchanged

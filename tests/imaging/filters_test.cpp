@@ -1,9 +1,9 @@
 #include "msk/imaging/filters.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 
@@ -184,7 +184,7 @@ TEST(Filters, PercentileInterpolatesBetweenOrderStatistics) {
   EXPECT_NEAR(msk::percentile(img, 25), 2.5, 1e-12);
   EXPECT_NEAR(msk::percentile(img, 99), 9.9, 1e-12);
   // Non-finite values are ignored.
-  img.data[3] = NAN;  // was 10
+  img.data[3] = NAN;       // was 10
   img.data[4] = INFINITY;  // was 6
   EXPECT_DOUBLE_EQ(msk::percentile(img, 100), 9.0);
   EXPECT_NEAR(msk::percentile(std::vector<double>{4, 1, 3, 2}, 50), 2.5, 1e-12);
@@ -197,7 +197,7 @@ TEST(Filters, NormalizeMapsPercentilesToZeroAndOneWithoutClipping) {
   g.dims = {101, 1, 1};
   msk::ImageF img(g);
   for (int i = 0; i <= 100; ++i) img.data[i] = static_cast<float>(10 + 2 * i);  // p-th percentile = 10 + 2p
-  const msk::ImageF n = msk::normalizeIntensity(img, 10, 90);  // 30 → 0, 190 → 1
+  const msk::ImageF n = msk::normalizeIntensity(img, 10, 90);                   // 30 → 0, 190 → 1
   EXPECT_NEAR(n.data[10], 0.0, 1e-6);
   EXPECT_NEAR(n.data[90], 1.0, 1e-6);
   EXPECT_NEAR(n.data[50], 0.5, 1e-6);

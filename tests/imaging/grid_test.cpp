@@ -1,7 +1,8 @@
 #include "msk/imaging/grid.h"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
 
 TEST(Grid, WorldVoxelWorldIsIdentityOnObliqueAnisotropicGrid) {
   msk::Grid g;

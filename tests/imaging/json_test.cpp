@@ -42,7 +42,7 @@ TEST(Json, ErrorsGiveLineAndColumn) {
   }
   EXPECT_THROW(msk::parseJson("{\"a\":1,\"a\":2}"), msk::Error);  // a key given twice
   EXPECT_THROW(msk::parseJson("{\"o\": {\"a\":1, \"b\": {}, \"a\":2}}"), msk::Error);
-  EXPECT_NO_THROW(msk::parseJson("[{\"a\":1}, {\"a\":2}]"));     // the same key in two objects is fine
+  EXPECT_NO_THROW(msk::parseJson("[{\"a\":1}, {\"a\":2}]"));  // the same key in two objects is fine
   EXPECT_THROW(msk::parseJson("[1,]"), msk::Error);
   EXPECT_THROW(msk::parseJson("1 2"), msk::Error);
   EXPECT_THROW(msk::parseJson("\"unterminated"), msk::Error);

@@ -1,8 +1,8 @@
 #include "msk/imaging/nifti_io.h"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -28,7 +28,7 @@ using msk::LogLevel;
 using msk::NiftiInfo;
 using msk::test::ScratchDir;
 
-const DataType kAllTypes[] = {DataType::UInt8, DataType::Int8,  DataType::Int16,   DataType::UInt16,
+const DataType kAllTypes[] = {DataType::UInt8, DataType::Int8,   DataType::Int16,   DataType::UInt16,
                               DataType::Int32, DataType::UInt32, DataType::Float32, DataType::Float64};
 
 /// An oblique, anisotropic grid with an improper (det −1) direction.
@@ -55,17 +55,23 @@ double cornerDistance(const Grid& a, const Grid& b) {
 /// Values spanning each datatype's range, all exactly representable in it.
 std::vector<double> valuesFor(DataType t) {
   switch (t) {
-    case DataType::UInt8: return {0, 255, 1, 17, 128, 254};
-    case DataType::Int8: return {-128, 127, 0, -1, 1, 42};
-    case DataType::Int16: return {-32768, 32767, 0, -1, 1234, -1234};
-    case DataType::UInt16: return {0, 65535, 1, 40000, 12345};
-    case DataType::Int32: return {-2147483648.0, 2147483647.0, 0, -1, 123456789};
-    case DataType::UInt32: return {0, 4294967295.0, 1, 3000000000.0};
+    case DataType::UInt8:
+      return {0, 255, 1, 17, 128, 254};
+    case DataType::Int8:
+      return {-128, 127, 0, -1, 1, 42};
+    case DataType::Int16:
+      return {-32768, 32767, 0, -1, 1234, -1234};
+    case DataType::UInt16:
+      return {0, 65535, 1, 40000, 12345};
+    case DataType::Int32:
+      return {-2147483648.0, 2147483647.0, 0, -1, 123456789};
+    case DataType::UInt32:
+      return {0, 4294967295.0, 1, 3000000000.0};
     case DataType::Float32:
-      return {std::numeric_limits<float>::lowest(), std::numeric_limits<float>::max(), 0, -1.5, 3.25,
+      return {std::numeric_limits<float>::lowest(),     std::numeric_limits<float>::max(), 0, -1.5, 3.25,
               std::numeric_limits<float>::denorm_min(), static_cast<double>(1e-20f)};
     case DataType::Float64:
-      return {std::numeric_limits<double>::lowest(), std::numeric_limits<double>::max(), 0, M_PI, -1e-300,
+      return {std::numeric_limits<double>::lowest(),    std::numeric_limits<double>::max(), 0, M_PI, -1e-300,
               std::numeric_limits<double>::denorm_min()};
   }
   return {};
@@ -99,19 +105,25 @@ const Layout kV1{40, 70, 72, 76, 112, 116, 252, 254, 256, 280, false};
 const Layout kV2{16, 12, 14, 104, 176, 184, 344, 348, 352, 400, true};
 
 void setReal(std::string& b, const Layout& L, size_t off, int idx, double v) {
-  if (L.v2) put<double>(b, off + 8 * idx, v);
-  else put<float>(b, off + 4 * idx, static_cast<float>(v));
+  if (L.v2)
+    put<double>(b, off + 8 * idx, v);
+  else
+    put<float>(b, off + 4 * idx, static_cast<float>(v));
 }
 double getReal(const std::string& b, const Layout& L, size_t off, int idx) {
   return L.v2 ? get<double>(b, off + 8 * idx) : get<float>(b, off + 4 * idx);
 }
 void setCode(std::string& b, const Layout& L, size_t off, int v) {
-  if (L.v2) put<int32_t>(b, off, v);
-  else put<int16_t>(b, off, static_cast<int16_t>(v));
+  if (L.v2)
+    put<int32_t>(b, off, v);
+  else
+    put<int16_t>(b, off, static_cast<int16_t>(v));
 }
 void setDim(std::string& b, const Layout& L, int idx, int64_t v) {
-  if (L.v2) put<int64_t>(b, L.dim + 8 * idx, v);
-  else put<int16_t>(b, L.dim + 2 * idx, static_cast<int16_t>(v));
+  if (L.v2)
+    put<int64_t>(b, L.dim + 8 * idx, v);
+  else
+    put<int16_t>(b, L.dim + 2 * idx, static_cast<int16_t>(v));
 }
 /// srow entry (row r = x,y,z; column c = 0..3).
 void setSrow(std::string& b, const Layout& L, int r, int c, double v) { setReal(b, L, L.srow, 4 * r + c, v); }
@@ -173,7 +185,8 @@ class LogCapture {
     return false;
   }
   size_t count(LogLevel level) const {
-    return static_cast<size_t>(std::count_if(messages.begin(), messages.end(), [&](const auto& e) { return e.first == level; }));
+    return static_cast<size_t>(
+        std::count_if(messages.begin(), messages.end(), [&](const auto& e) { return e.first == level; }));
   }
   std::vector<std::pair<LogLevel, std::string>> messages;
 
@@ -303,18 +316,18 @@ TEST(NiftiRoundTrip, ReadsByteSwappedFiles) {
   // Turn it into a big-endian file: swap every numeric header field and every voxel.
   patch(path, [](std::string& b) {
     auto swapAt = [&b](size_t off, size_t n) { std::reverse(b.begin() + off, b.begin() + off + n); };
-    swapAt(0, 4);                                          // sizeof_hdr
-    swapAt(32, 4);                                         // extents
-    swapAt(36, 2);                                         // session_error
-    for (size_t o = 40; o < 56; o += 2) swapAt(o, 2);      // dim
-    for (size_t o = 56; o < 68; o += 4) swapAt(o, 4);      // intent_p1..3
-    for (size_t o = 68; o < 76; o += 2) swapAt(o, 2);      // intent_code, datatype, bitpix, slice_start
-    for (size_t o = 76; o < 120; o += 4) swapAt(o, 4);     // pixdim, vox_offset, scl_slope, scl_inter
-    swapAt(120, 2);                                        // slice_end
-    for (size_t o = 124; o < 148; o += 4) swapAt(o, 4);    // cal_max .. glmin
-    swapAt(252, 2);                                        // qform_code
-    swapAt(254, 2);                                        // sform_code
-    for (size_t o = 256; o < 328; o += 4) swapAt(o, 4);    // quatern, qoffset, srow
+    swapAt(0, 4);                                             // sizeof_hdr
+    swapAt(32, 4);                                            // extents
+    swapAt(36, 2);                                            // session_error
+    for (size_t o = 40; o < 56; o += 2) swapAt(o, 2);         // dim
+    for (size_t o = 56; o < 68; o += 4) swapAt(o, 4);         // intent_p1..3
+    for (size_t o = 68; o < 76; o += 2) swapAt(o, 2);         // intent_code, datatype, bitpix, slice_start
+    for (size_t o = 76; o < 120; o += 4) swapAt(o, 4);        // pixdim, vox_offset, scl_slope, scl_inter
+    swapAt(120, 2);                                           // slice_end
+    for (size_t o = 124; o < 148; o += 4) swapAt(o, 4);       // cal_max .. glmin
+    swapAt(252, 2);                                           // qform_code
+    swapAt(254, 2);                                           // sform_code
+    for (size_t o = 256; o < 328; o += 4) swapAt(o, 4);       // quatern, qoffset, srow
     for (size_t o = 352; o < b.size(); o += 2) swapAt(o, 2);  // int16 voxels
   });
   NiftiInfo info;
@@ -586,7 +599,8 @@ TEST(NiftiLike, RefusesAVolumeOnAnotherGrid) {
   msk::NiftiWriteOptions o;
   o.like = &info;
   const std::string out = dir.file("bad.nii");
-  expectIoError([&] { msk::writeNifti(out, msk::LabelMap(other, 1), DataType::UInt8, o); }, out, "differs from the 'like' header");
+  expectIoError([&] { msk::writeNifti(out, msk::LabelMap(other, 1), DataType::UInt8, o); }, out,
+                "differs from the 'like' header");
   EXPECT_FALSE(std::filesystem::exists(out));
 
   // A pixdim-only header has no orientation to give an oblique volume.
@@ -653,7 +667,8 @@ TEST(NiftiBadInput, TruncatedFiles) {
   msk::test::writeBytes(nii, bytes.substr(0, bytes.size() - 100));
   const size_t need = 4 * g.voxelCount();
   expectIoError([&] { msk::readNifti<float>(nii); }, nii,
-                "header claims " + std::to_string(need) + " bytes of voxel data but the file holds " + std::to_string(need - 100));
+                "header claims " + std::to_string(need) + " bytes of voxel data but the file holds " +
+                    std::to_string(need - 100));
   EXPECT_NO_THROW(msk::readNiftiHeader(nii));  // the header alone is fine
 }
 
@@ -667,7 +682,8 @@ TEST(NiftiBadInput, HugeHeaderFromTinyFileFailsWithoutAllocating) {
     for (int a = 1; a <= 3; ++a) setDim(b, kV1, a, 2000);
   });
   ASSERT_EQ(msk::test::readBytes(path).size(), 352u);
-  expectIoError([&] { msk::readNifti<double>(path); }, path, "header claims 64000000000 bytes of voxel data but the file holds 0");
+  expectIoError([&] { msk::readNifti<double>(path); }, path,
+                "header claims 64000000000 bytes of voxel data but the file holds 0");
   EXPECT_NO_THROW(msk::readNiftiHeader(path));
 
   // The same header gzipped: the decompressed length is counted before anything is allocated.
@@ -770,7 +786,8 @@ TEST(NiftiWrite, FailuresLeaveNoFile) {
   msk::Volume<double> nan = vol;
   nan.data[1] = std::nan("");
   expectIoError([&] { msk::writeNifti(out, nan, DataType::Int32); }, out, "not finite");
-  expectIoError([&] { msk::writeNifti(dir.file("x.img"), vol, DataType::Float32); }, dir.file("x.img"), ".nii or .nii.gz");
+  expectIoError([&] { msk::writeNifti(dir.file("x.img"), vol, DataType::Float32); }, dir.file("x.img"),
+                ".nii or .nii.gz");
   msk::NiftiWriteOptions v3;
   v3.version = 3;
   expectIoError([&] { msk::writeNifti(out, vol, DataType::Float32, v3); }, out, "version must be 1 or 2");

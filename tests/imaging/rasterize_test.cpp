@@ -187,9 +187,9 @@ TEST(Rasterize, FollowsTheWindingNumberWhereTheSurfaceFolds) {
                 static_cast<int>(std::lround(v.z())));
   };
   const msk::LabelMap twice = msk::rasterize(join(a, b, false), g);
-  EXPECT_NE(at(twice, {3.1, 0, 0}), 0);   // covered twice (both spheres)
-  EXPECT_NE(at(twice, {-3, 0, 0}), 0);    // once (a only)
-  EXPECT_NE(at(twice, {9.5, 0, 0}), 0);   // once (b only)
+  EXPECT_NE(at(twice, {3.1, 0, 0}), 0);  // covered twice (both spheres)
+  EXPECT_NE(at(twice, {-3, 0, 0}), 0);   // once (a only)
+  EXPECT_NE(at(twice, {9.5, 0, 0}), 0);  // once (b only)
   const msk::LabelMap turned = msk::rasterize(join(a, b, true), g);
   EXPECT_NE(at(turned, {-3, 0, 0}), 0);   // a only: winding number 1
   EXPECT_EQ(at(turned, {3.1, 0, 0}), 0);  // a and the turned sheet: 0

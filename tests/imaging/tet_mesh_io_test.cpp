@@ -72,8 +72,9 @@ std::string handWritten(bool triangle, const std::string& space = "") {
     field = "<FieldData><Array type=\"String\" Name=\"SPACE\" NumberOfTuples=\"1\" format=\"ascii\">" + codes +
             "0</Array></FieldData>";
   }
-  return std::string("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" "
-                     "byte_order=\"LittleEndian\">\n<UnstructuredGrid>") +
+  return std::string(
+             "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" "
+             "byte_order=\"LittleEndian\">\n<UnstructuredGrid>") +
          field + "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">\n" +
          "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">"
          "1 2 3  11 2 3  1 12 3  1 2 13</DataArray></Points>\n"

@@ -85,7 +85,7 @@ TEST(MultiPhantom, FourBonesTwentyMusclesWithTheirLabels) {
     names.insert(o.name);
     (o.kind == "bone" ? bones : muscles) += 1;
     EXPECT_TRUE(o.kind == "bone" || o.kind == "muscle");
-    EXPECT_GT(voxels[o.label], 1000u);  // every structure is present in the label map
+    EXPECT_GT(voxels[o.label], 1000u);    // every structure is present in the label map
     EXPECT_EQ(o.truth.vertexCount(), 0);  // meshes = false
   }
   EXPECT_EQ(bones, 4);

@@ -1,9 +1,9 @@
 // The axis-first coarse stage (DESIGN-NOTES §4): a tubular object whose template is straight and displaced while the
 // image shows it bent reaches the image better when its axis is evolved first. The scenarios are shared with
 // bench/phantom_bench.cpp, which reports their figures (BM_AxisFirstBentTube, BM_AxisFirstThighMuscle).
-#include <string>
-
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "msk/core/error.h"
 #include "msk/segmentation/scene.h"

@@ -59,7 +59,8 @@ TEST(CollisionResponseScene, ResolutionKeyIsReadAndValidated) {
        "collisions[0] (femur, quadriceps): \"resolution\" must be one of sequential, global, found \"parallel\""},
       {R"([{"pair": ["femur", "quadriceps"], "resolution": 2}])",
        "collisions[0] (femur, quadriceps): \"resolution\" must be a string"},
-      {R"([{"auto": true, "resolution": "Global"}])", "collisions[0]: \"resolution\" must be one of sequential, global"},
+      {R"([{"auto": true, "resolution": "Global"}])",
+       "collisions[0]: \"resolution\" must be one of sequential, global"},
       {R"([{"pair": ["femur", "quadriceps"], "resolve": "global"}])",
        "collisions[0] (femur, quadriceps): unknown key \"resolve\""},
   };
@@ -70,14 +71,16 @@ TEST(CollisionResponseScene, ResolutionKeyIsReadAndValidated) {
       ADD_FAILURE() << "no error for " << b.collisions;
     } catch (const msk::IoError& e) {
       EXPECT_EQ(e.file(), path);
-      EXPECT_NE(std::string(e.what()).find(b.phrase), std::string::npos) << "wanted '" << b.phrase << "' in: " << e.what();
+      EXPECT_NE(std::string(e.what()).find(b.phrase), std::string::npos)
+          << "wanted '" << b.phrase << "' in: " << e.what();
     }
   }
 }
 
 // The bundled thigh scene with every pair in velocity mode, and with every pair resolved globally: no voxel carries
 // two labels, Dice per object stays at the default's level (femur 0.978, quadriceps 0.968, hamstrings 0.968, adductors
-// 0.972 with position, spring, sequential; docs/measurements.md), and the settings written to report.json name each pair's response.
+// 0.972 with position, spring, sequential; docs/measurements.md), and the settings written to report.json name each
+// pair's response.
 TEST(CollisionResponseScene, ThighSceneUnderVelocityModeAndGlobalResolution) {
   const msk::test::BundledThigh thigh = msk::test::loadBundledThigh();
   const double defaultDice[4] = {0.978, 0.968, 0.968, 0.972};

@@ -2,12 +2,12 @@
 // image, a NaN voxel and an image in metre units. Small grids, one or two levels and a coarse template keep every case
 // fast. The scenes in other units are shared with bench/stability_bench.cpp, which reports their figures
 // (BM_MetreSpacing).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
@@ -114,7 +114,7 @@ TEST(SegmenterExtremes, MetreSpacingGivesTheSameResultUpToScale) {
 // rounding flips a few tie-breaks of the decimation that builds the coarse level: measured 0.004 mm, bound 0.01 mm.
 TEST(SegmenterExtremes, MetreSpacingWithTwoLevels) {
   const msk::TriangleMesh mm = msk::test::ballInUnits(1.0, 2), pow2 = msk::test::ballInUnits(1.0 / 1024, 2),
-                         m = msk::test::ballInUnits(1e-3, 2);
+                          m = msk::test::ballInUnits(1e-3, 2);
   ASSERT_TRUE(m.vertices.allFinite());
   ASSERT_EQ(mm.vertexCount(), m.vertexCount());
   ASSERT_EQ(mm.vertexCount(), pow2.vertexCount());

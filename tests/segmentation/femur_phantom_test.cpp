@@ -28,10 +28,10 @@ TEST(FemurPhantom, FiveOtherSeedsIncludingObliqueAndAnisotropicGrids) {
 
 // Convergence: accuracy rises from the fast preset to the accurate one on these six phantoms. Per phantom the
 // differences between neighbouring presets are a few hundredths of a millimetre either way where the template starts
-// close (docs/measurements.md: where a level stops sets the prior weight a result carries), so the test asserts the mean order and
-// that accurate beats fast on every phantom. Measured (mesh ASSD, mm, fast / balanced / accurate): mean 0.394 / 0.342 /
-// 0.292; balanced behind fast on the bundled seed (0.282 / 0.305) and seed 3 (0.500 / 0.509), accurate ahead of both on
-// every phantom (0.172–0.445).
+// close (docs/measurements.md: where a level stops sets the prior weight a result carries), so the test asserts the
+// mean order and that accurate beats fast on every phantom. Measured (mesh ASSD, mm, fast / balanced / accurate): mean
+// 0.394 / 0.342 / 0.292; balanced behind fast on the bundled seed (0.282 / 0.305) and seed 3 (0.500 / 0.509), accurate
+// ahead of both on every phantom (0.172–0.445).
 TEST(FemurPhantom, PresetsGainAccuracyFromFastToAccurate) {
   const msk::Quality presets[] = {msk::Quality::Fast, msk::Quality::Balanced, msk::Quality::Accurate};
   double mean[3] = {0, 0, 0};

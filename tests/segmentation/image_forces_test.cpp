@@ -399,8 +399,8 @@ TEST(ImageForcesGradient, EdgeFocusingRemovesTheCoarseScaleShiftOfAThinShell) {
 
 // CT-like bone seen in its surroundings: bone (300) to r = 20 mm, a 4 mm muscle layer (100), then fat (−150). The
 // muscle–fat edge at r = 24 mm falls further (250) than the bone's own edge (200) and has its polarity, so from a
-// surface 2.5 mm out the strongest edge is the wrong one. The edge level, estimated where the template lies (r = 20 mm),
-// is about midway between bone and muscle: the muscle–fat edge stays below it and no longer counts.
+// surface 2.5 mm out the strongest edge is the wrong one. The edge level, estimated where the template lies (r = 20
+// mm), is about midway between bone and muscle: the muscle–fat edge stays below it and no longer counts.
 TEST(ImageForcesGradient, EdgeLevelIgnoresAStrongerEdgeOfAnotherBoundary) {
   const ImageF image = makeImage({1.0, 1.0, 1.0}, {10, -5, 20}, 30, [](const Eigen::Vector3d& p) {
     const double r = (p - kCenter).norm();
@@ -409,8 +409,10 @@ TEST(ImageForcesGradient, EdgeLevelIgnoresAStrongerEdgeOfAnotherBoundary) {
   const ImageFeatures f = computeImageFeatures(image, 1.0);
   const Sphere at = makeSphere(kRadius);
   const double level = estimateEdgeLevel(f, at.positions, at.normals);
-  // Intensities are normalised (1–99 %) to [0, 1]: bone 1, muscle ≈ 0.56, fat 0; the level sits between bone and muscle.
-  const double bone = f.sample(kCenter).value(), muscle = f.sample(kCenter + Eigen::Vector3d(kRadius + 1.5, 0, 0)).value();
+  // Intensities are normalised (1–99 %) to [0, 1]: bone 1, muscle ≈ 0.56, fat 0; the level sits between bone and
+  // muscle.
+  const double bone = f.sample(kCenter).value(),
+               muscle = f.sample(kCenter + Eigen::Vector3d(kRadius + 1.5, 0, 0)).value();
   EXPECT_GT(level, muscle + 0.1 * (bone - muscle));
   EXPECT_LT(level, bone - 0.1 * (bone - muscle));
   TargetSearchOptions opts;
@@ -433,11 +435,15 @@ TEST(ImageForcesGradient, EdgeLevelIgnoresAStrongerEdgeOfAnotherBoundary) {
   // From inside (r = 18 mm) both find the bone's edge: the level only removes edges, it moves none.
   const Sphere in = makeSphere(kRadius - 2);
   EXPECT_LT(std::abs(radialError(searchTargets(f, in.positions, in.normals, in.neighbors, opts, Polarity::BrightInside,
-                                               image.grid).targets).mean), 0.2);
+                                               image.grid)
+                                     .targets)
+                         .mean),
+            0.2);
   // A level no edge crosses leaves no target.
   opts.edgeLevel = bone + 1;
   EXPECT_EQ(searchTargets(f, out.positions, out.normals, out.neighbors, opts, Polarity::BrightInside, image.grid)
-                .scores.maxCoeff(), 0.0);
+                .scores.maxCoeff(),
+            0.0);
 }
 
 TEST(ImageForcesGradient, DefaultsFollowTheVoxelSize) {

@@ -1,10 +1,10 @@
 #include "msk/segmentation/metrics.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/imaging/rasterize.h"

@@ -30,8 +30,8 @@ size_t shared(const std::vector<size_t>& a, const std::vector<size_t>& b) {
 
 }  // namespace
 
-// Two balls of radius 10 mm whose centres are 17 mm apart share a lens 3 mm thick (about 134 mm³): every shared centre is handed
-// over, every vertex moves inward or not at all, and the volume lost is of the order of the lens, not more.
+// Two balls of radius 10 mm whose centres are 17 mm apart share a lens 3 mm thick (about 134 mm³): every shared centre
+// is handed over, every vertex moves inward or not at all, and the volume lost is of the order of the lens, not more.
 TEST(OverlapRepair, OverlappingBallsEndWithNoSharedVoxel) {
   const msk::Grid g = testGrid();
   const Eigen::Vector3d ca(0, 0, 0), cb(17, 0.3, -0.2);
@@ -52,7 +52,8 @@ TEST(OverlapRepair, OverlappingBallsEndWithNoSharedVoxel) {
       EXPECT_LE((m->vertices.row(v).transpose() - c).norm(), (m0->vertices.row(v).transpose() - c).norm() + 1e-12);
   }
   // Each ball must give up about half the lens (2 caps of π h² (3r − h) / 3, h = 1.5 mm: 134 mm³ in all).
-  const double lost = msk::enclosedVolume(a0) + msk::enclosedVolume(b0) - msk::enclosedVolume(a) - msk::enclosedVolume(b);
+  const double lost =
+      msk::enclosedVolume(a0) + msk::enclosedVolume(b0) - msk::enclosedVolume(a) - msk::enclosedVolume(b);
   EXPECT_GT(lost, 0.0);
   EXPECT_LT(lost, 300.0);
 }

@@ -3,9 +3,9 @@
 // force learns its profiles on the left femur (the template's source), where the template fits by construction.
 // Skipped without ../shared/data. The scenarios are shared with bench/real_scans_bench.cpp, which reports the figures
 // (BM_RealCtFemur, BM_RealCtFemurWithHip).
-#include <string>
-
 #include <gtest/gtest.h>
+
+#include <string>
 
 #include "msk/test/files.h"
 #include "msk/test/real_scan_scenarios.h"

@@ -3,10 +3,10 @@
 // profile force learns each object's profiles on the structure its template came from. Scores are taken on the full
 // grid against the reference labels (TotalSegmentator's, not by hand). Skipped without ../shared/data. The scenarios
 // (msk/test/real_scan_scenarios.h) are shared with bench/real_scans_bench.cpp, which reports their figures.
+#include <gtest/gtest.h>
+
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "msk/imaging/nifti_io.h"
 #include "msk/test/files.h"
@@ -56,11 +56,11 @@ TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
   EXPECT_EQ(sc.overlapVoxels, 0u);
 }
 
-// How far a mirrored contralateral label can match at best on this CT (docs/measurements.md): the best rigid fit of the left
-// gluteus maximus and medius labels, mirrored, onto the right ones. Measured: maximus 0.827 → 0.858 (1.7°, centroid
-// moved 2.5 mm), medius 0.801 → 0.847 (3.9°, 5.4 mm); the gluteus medius template started at its fitted pose ends at
-// 0.867, so its 0.88 cannot come from placing the template better, only from the image, which shows no boundary toward
-// the other gluteal muscles. The assertions check the fit (it does not lose Dice, stays a small motion) and the
+// How far a mirrored contralateral label can match at best on this CT (docs/measurements.md): the best rigid fit of the
+// left gluteus maximus and medius labels, mirrored, onto the right ones. Measured: maximus 0.827 → 0.858 (1.7°,
+// centroid moved 2.5 mm), medius 0.801 → 0.847 (3.9°, 5.4 mm); the gluteus medius template started at its fitted pose
+// ends at 0.867, so its 0.88 cannot come from placing the template better, only from the image, which shows no boundary
+// toward the other gluteal muscles. The assertions check the fit (it does not lose Dice, stays a small motion) and the
 // documented limit.
 TEST(RealScenes, CtGlutealSidesBestRigidFit) {
   const std::string data = msk::test::sharedData();
@@ -87,10 +87,10 @@ TEST(RealScenes, CtGlutealSidesBestRigidFit) {
   }
 }
 
-// What the CT image itself says about the gluteus medius' labelled boundary (docs/measurements.md): the same scene with every
-// template built from the right side's OWN label (the shape the result should have), displaced by 3 mm and scaled by
-// ±3 % as above. If the image carried that boundary, the muscle would end near its label from there. It does not: the
-// run leaves it further from its label than its template started, with the profiles learned on the left side (as in
+// What the CT image itself says about the gluteus medius' labelled boundary (docs/measurements.md): the same scene with
+// every template built from the right side's OWN label (the shape the result should have), displaced by 3 mm and scaled
+// by ±3 % as above. If the image carried that boundary, the muscle would end near its label from there. It does not:
+// the run leaves it further from its label than its template started, with the profiles learned on the left side (as in
 // the scene above) and with the gradient force and the edge level. So the 0.88 asked of the mirrored left
 // template (best rigid fit 0.847, CtGlutealSidesBestRigidFit) would have to come from the image, which on this 3 mm CT
 // moves even the right shape away. Measured: gluteus medius template alone 0.927 → 0.851 (profiles) and 0.910

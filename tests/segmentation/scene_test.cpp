@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-
 #include <algorithm>
 #include <functional>
 #include <set>
@@ -11,10 +10,10 @@
 #include <vector>
 
 #include "msk/core/error.h"
-#include "msk/imaging/mesh_io.h"
-#include "msk/phantom/phantom.h"
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/transform_fit.h"
+#include "msk/imaging/mesh_io.h"
+#include "msk/phantom/phantom.h"
 #include "msk/test/files.h"
 
 namespace {
@@ -203,7 +202,8 @@ TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
       {R"({"objects": ["femur"]})", {"objects[0]", "expected an object, found string"}},
       // The example of scene.h: a misspelt key names the object and lists the known keys.
       {twoObjects(R"(, "lable": 3)"),
-       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model, profiles_from)"}},
+       {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model, "
+        "profiles_from)"}},
       {R"({"objects": [{"label": 1, "kind": "bone", "template": "a.vtk"}]})", {"objects[0]: missing key \"name\""}},
       {R"({"objects": [{"name": 5, "label": 1, "kind": "bone", "template": "a.vtk"}]})",
        {"objects[0]", "\"name\" must be a string, found number 5"}},
@@ -462,8 +462,8 @@ TEST(Scene, EveryKindOfBadModelOrPairValueNamesTheKeyAndTheObject) {
 
 TEST(Scene, PairParametersAreReflected) {
   SceneFiles f;
-  const msk::Scene s = msk::loadScene(f.scene(twoObjects(
-      "", R"([{"pair": ["quadriceps", "femur"], "gap_mm": 0, "proximity_mm": 1.5, "friction": 0.25,
+  const msk::Scene s = msk::loadScene(
+      f.scene(twoObjects("", R"([{"pair": ["quadriceps", "femur"], "gap_mm": 0, "proximity_mm": 1.5, "friction": 0.25,
                "mode": "acceleration", "target": "reference"}])")));
   ASSERT_EQ(s.collisions.size(), 1u);
   const msk::CollisionPair& p = s.collisions[0];
@@ -495,7 +495,8 @@ std::string threeSpheres(const ScratchDir& dir, const std::string& collisions) {
       {"name": "near1", "label": 1, "kind": "bone", "template": "s1.vtk"},
       {"name": "far", "label": 2, "kind": "muscle", "template": "s3.vtk"},
       {"name": "near2", "label": 3, "kind": "muscle", "template": "s2.vtk"}],
-    "collisions": )" + collisions + "}");
+    "collisions": )" + collisions +
+                                  "}");
   return path;
 }
 
@@ -572,7 +573,8 @@ TEST(Scene, ProfilesFromMirrorAndMatrix) {
   // Unset: no transform.
   EXPECT_FALSE(msk::loadScene(f.scene(twoObjects(R"(, "force": "profile")"))).objects[0].profileSource);
   // The mirror about x = 12.5 mm: x' = 25 − x.
-  const msk::Scene m = msk::loadScene(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": 12.5})")));
+  const msk::Scene m =
+      msk::loadScene(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": 12.5})")));
   ASSERT_TRUE(m.objects[0].profileSource);
   Eigen::Matrix4d want = Eigen::Matrix4d::Identity();
   want(0, 0) = -1;
@@ -598,18 +600,26 @@ TEST(Scene, ProfilesFromErrorsNameTheObjectAndTheProblem) {
                    {"profiles_from", "unknown key \"mirror\""});
   expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {})")), {"exactly one of"});
   expectSceneError(
-      f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": 1, "matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})")),
+      f.scene(twoObjects(
+          R"(, "force": "profile", "profiles_from": {"mirror_x": 1, "matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})")),
       {"exactly one of"});
   expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": "left"})")),
                    {"\"mirror_x\" must be a finite number"});
-  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]})")),
-                   {"4 rows of 4"});
-  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0],[0,0,1,0],[0,0,0,1]]})")),
-                   {"4 rows of 4"});
-  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,1,1]]})")),
-                   {"last row 0 0 0 1"});
-  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[1,1,0,0],[0,0,0,1]]})")),
-                   {"singular"});
+  expectSceneError(
+      f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]})")),
+      {"4 rows of 4"});
+  expectSceneError(
+      f.scene(
+          twoObjects(R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0],[0,0,1,0],[0,0,0,1]]})")),
+      {"4 rows of 4"});
+  expectSceneError(
+      f.scene(twoObjects(
+          R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,1,1]]})")),
+      {"last row 0 0 0 1"});
+  expectSceneError(
+      f.scene(twoObjects(
+          R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[1,1,0,0],[0,0,0,1]]})")),
+      {"singular"});
 }
 
 TEST(Scene, ToProfileSourceMirrorsPointsAndKeepsNormalsOutward) {
@@ -661,9 +671,9 @@ TEST(Scene, AxisFirstNeedsAMedialAxisAndNamesTheKeyAndTheObject) {
   expectTrueFalseUnset(msk::loadScene(f.scene(text)), [](const msk::ObjectModel& m) { return m.axisFirst; });
 
   const std::string m = R"(, "model": )";
-  expectSceneError(f.scene(twoObjects(m + R"({"axis_first": true})"), "no_axis.json"),
-                   {"objects[0] (femur) model: \"axis_first\" is given but the object has no medial axis",
-                    "\"medial_axis\": true"});
+  expectSceneError(
+      f.scene(twoObjects(m + R"({"axis_first": true})"), "no_axis.json"),
+      {"objects[0] (femur) model: \"axis_first\" is given but the object has no medial axis", "\"medial_axis\": true"});
   expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": false, "axis_first": false})"), "axis_off.json"),
                    {"objects[0] (femur) model: \"axis_first\" is given but the object has no medial axis"});
   expectSceneError(f.scene(twoObjects(m + R"({"medial_axis": true, "axis_first": "yes"})"), "not_bool.json"),

@@ -1,13 +1,13 @@
 // Property tests of the segmentation pipeline on synthetic images with known answers.
-#include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
-
-#include <cmath>
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "msk/core/error.h"
 #include "msk/imaging/grid.h"
+#include "msk/segmentation/segment_report.h"
 #include "msk/test/volumes.h"
 
 namespace {
@@ -69,7 +69,8 @@ TEST(Segmenter, StaticTemplateInItsOwnImageMovesLessThanATenthOfAMillimetre) {
   const Eigen::Vector3d axes(22, 16, 12);
   const msk::ImageF img = msk::test::ellipsoidImage(g, Eigen::Vector3d::Zero(), axes, 900.f, 100.f);
   msk::TriangleMesh templ = msk::makeIcosphere(1.0, 4);
-  for (int i = 0; i < templ.vertexCount(); ++i) templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose());
+  for (int i = 0; i < templ.vertexCount(); ++i)
+    templ.vertices.row(i) = templ.vertices.row(i).cwiseProduct(axes.transpose());
   msk::SegmentOptions opts;
   const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(templ), opts);
   const Eigen::VectorXd& disp = res.objects[0].mesh.pointData.at("displacement_mm");
@@ -91,9 +92,12 @@ TEST(Segmenter, ExtremeInternalStiffnessStaysStable) {
       ASSERT_TRUE(m.vertices.allFinite());
       double mx = 0;
       const double mean = meanRadialError(m, c, image > 0 ? 18.0 : 16.0, &mx);
-      if (image == 0.0) EXPECT_LT(mx, 0.5);          // no image force: the template barely moves
-      else if (gamma > 0.5) EXPECT_LT(mean, 0.3);    // stiff shape memory still reaches the edge
-      else EXPECT_LT(mean, 1.0);                     // no memory: noisy but bounded
+      if (image == 0.0)
+        EXPECT_LT(mx, 0.5);  // no image force: the template barely moves
+      else if (gamma > 0.5)
+        EXPECT_LT(mean, 0.3);  // stiff shape memory still reaches the edge
+      else
+        EXPECT_LT(mean, 1.0);  // no memory: noisy but bounded
     }
   }
 }
@@ -252,7 +256,8 @@ TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   two.evolution.threads = 2;
   const msk::SegmentationResult a = msk::segmentScene(img, scene, one), b = msk::segmentScene(img, scene, two);
   ASSERT_EQ(a.collisionSetsBuilt, 2 * a.settings.levels);
-  for (size_t i = 0; i < 2; ++i) EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
+  for (size_t i = 0; i < 2; ++i)
+    EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ(a.overlapVoxels, b.overlapVoxels);
 }
 

@@ -1,13 +1,13 @@
 #include "msk/segmentation/tetrahedralize.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <random>
 #include <set>
 #include <utility>
-
-#include <gtest/gtest.h>
 
 #include "msk/core/error.h"
 #include "msk/core/tet_split.h"
@@ -125,8 +125,7 @@ int bridgeEdgeCount(const msk::TetMesh& m) {
   const msk::Triangles bf = msk::tetBoundaryFaces(m);
   std::set<std::pair<int, int>> boundaryEdges, bridges;
   for (Eigen::Index f = 0; f < bf.rows(); ++f)
-    for (int k = 0; k < 3; ++k)
-      boundaryEdges.insert(std::minmax(bf(f, k), bf(f, (k + 1) % 3)));
+    for (int k = 0; k < 3; ++k) boundaryEdges.insert(std::minmax(bf(f, k), bf(f, (k + 1) % 3)));
   for (int t = 0; t < m.tetCount(); ++t)
     for (int i = 0; i < 4; ++i)
       for (int j = i + 1; j < 4; ++j) {

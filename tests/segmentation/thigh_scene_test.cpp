@@ -21,7 +21,7 @@ msk::test::ThighRun segment(const msk::test::BundledThigh& thigh, bool collision
 TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
   const msk::test::BundledThigh thigh = msk::test::loadBundledThigh();
   const msk::test::ThighRun without = segment(thigh, false), with = segment(thigh, true);
-  EXPECT_EQ(without.res.collisionSetsBuilt, 0);  // nothing built when not asked for
+  EXPECT_EQ(without.res.collisionSetsBuilt, 0);                              // nothing built when not asked for
   EXPECT_EQ(with.res.collisionSetsBuilt, 2 * 6 * with.res.settings.levels);  // both directions of 6 pairs per level
   // Without collision response the muscles overlap by thousands of voxels; with it, not at all, and no vertex of an
   // output surface is more than 0.1 mm inside a partner.

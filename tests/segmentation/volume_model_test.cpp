@@ -6,10 +6,10 @@
 // phantom's hamstrings and, when the shared data are there, the left autochthon muscle of totalseg-mr from its own
 // label. The scenarios are shared with bench/volume_model_bench.cpp, which reports their figures (and those of the
 // other phantom muscles, other scales and the tetrahedralisation's cost).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "msk/test/files.h"
 #include "msk/test/volume_model_scenarios.h"

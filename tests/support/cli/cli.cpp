@@ -1,11 +1,10 @@
 #include "msk/test/cli.h"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <cstdlib>
-
-#include <sys/wait.h>
 
 #include "msk/test/files.h"
 

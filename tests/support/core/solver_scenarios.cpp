@@ -1,9 +1,8 @@
 #include "msk/test/solver_scenarios.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <limits>
-
-#include <Eigen/Geometry>
 
 #include "msk/core/collision_constraint.h"
 #include "msk/test/shapes.h"

@@ -1,10 +1,9 @@
 #include "msk/test/real_scan_scenarios.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/Dense>
 
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/rasterize.h"

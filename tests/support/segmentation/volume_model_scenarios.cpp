@@ -1,12 +1,11 @@
 #include "msk/test/volume_model_scenarios.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <Eigen/LU>
 
 #include "msk/core/error.h"
 #include "msk/core/tet_split.h"

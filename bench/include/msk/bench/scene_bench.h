@@ -13,9 +13,9 @@ namespace msk {
 
 /// What the scene benchmark runs.
 struct SceneBenchOptions {
-  int structures = 24;       ///< 24 (both thighs and lower legs) or 4 (the thigh)
-  PhantomOptions phantom;    ///< seed, spacing, vertices of the phantom
-  SegmentOptions segment;    ///< the run's settings (quality, threads, collisions)
+  int structures = 24;     ///< 24 (both thighs and lower legs) or 4 (the thigh)
+  PhantomOptions phantom;  ///< seed, spacing, vertices of the phantom
+  SegmentOptions segment;  ///< the run's settings (quality, threads, collisions)
 };
 
 /// One object's figures against the phantom's truth.
@@ -31,10 +31,10 @@ struct SceneBenchFigures {
   SceneBenchOptions options;
   Scene scene;
   SegmentationResult result;
-  Grid grid;                     ///< the phantom image's grid
+  Grid grid;  ///< the phantom image's grid
   double generationSeconds = 0, generationCpu = 0, segmentSeconds = 0, segmentCpu = 0, scoreSeconds = 0;
   double peakRssMiB = 0;
-  size_t simplexVertices = 0;    ///< at the finest level, over every object
+  size_t simplexVertices = 0;  ///< at the finest level, over every object
   /// Projection time per family: a stacked solver's time once, per-object times (image search) summed.
   std::map<std::string, double> secondsPerFamily;
   std::vector<SceneBenchObject> objects;

@@ -8,10 +8,10 @@ namespace msk {
 
 /// One setting's averaged figures.
 struct TradeoffPoint {
-  std::string label;     ///< e.g. "xpbd 2x2" or "preset fast"
-  double seconds = 0;    ///< mean time per run, s (wall or CPU)
-  double error = 0;      ///< mean error (lower is better), e.g. ASSD in mm
-  bool preset = false;   ///< drawn as a filled square instead of a circle
+  std::string label;    ///< e.g. "xpbd 2x2" or "preset fast"
+  double seconds = 0;   ///< mean time per run, s (wall or CPU)
+  double error = 0;     ///< mean error (lower is better), e.g. ASSD in mm
+  bool preset = false;  ///< drawn as a filled square instead of a circle
 };
 
 /// Indices of the points no other point beats in both time and error (ties kept), by increasing time.

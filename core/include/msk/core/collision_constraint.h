@@ -2,11 +2,10 @@
 /// Vertex–surface collision constraints (thesis seed Tables 4.23 and 4.24, DESIGN-NOTES §3): one object's vertices
 /// against a partner surface, each contact a row g = r = (−1, b) over the vertex and the partner triangle's corners,
 /// and the global resolution of many contacts together (DESIGN-NOTES §5).
+#include <Eigen/Core>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/collision_response.h"
 #include "msk/core/collision_surface.h"

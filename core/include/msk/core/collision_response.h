@@ -10,10 +10,9 @@
 /// contact normal n (unit, from the partner toward P's allowed side). Relative position Pc = P̄ − P, velocity
 /// Vc = Σ bi Vi − V; Pc·n = −(distance of P outside the partner). Gap g ≥ 0 mm, proximity d_max > 0 mm, friction
 /// μ ∈ [0, 1], proximity factor λ = clamp(1 + (Pc·n + g)/d_max, 0, 1): 1 within the gap, 0 beyond g + d_max.
+#include <Eigen/Core>
 #include <limits>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 
@@ -48,8 +47,8 @@ const char* collisionResolutionName(CollisionResolution r);
 /// The response a collision pair asks for; the default is the seed's position correction with a spring target,
 /// resolved sequentially.
 struct CollisionResponse {
-  CollisionMode mode = CollisionMode::Position;                   ///< what is corrected
-  CollisionTarget target = CollisionTarget::Spring;               ///< where contacts are sent
+  CollisionMode mode = CollisionMode::Position;                      ///< what is corrected
+  CollisionTarget target = CollisionTarget::Spring;                  ///< where contacts are sent
   CollisionResolution resolution = CollisionResolution::Sequential;  ///< one by one or all at once
   /// Velocity and acceleration modes: a contact whose vertex is more than this far inside the partner (Pc·n > it, mm)
   /// is corrected in position instead, sequentially with the spring target, in the projection phase (the seed's
@@ -105,28 +104,28 @@ bool shareContactChange(const Eigen::Vector3d& delta, const double bary[3], doub
 /// One contact linearised for the global resolution: Pc = Σ_j a_j X_j over 4 particles (a = −1 for the vertex, bi
 /// for the corners), the wanted change Y = ΔPc (or ΔVc), and its normal.
 struct ContactRow {
-  int index[4] = {0, 0, 0, 0};         ///< global particle indices: vertex, then the triangle's corners
-  double weight[4] = {-1, 0, 0, 0};    ///< a_j
-  Eigen::Vector3d change = Eigen::Vector3d::Zero();  ///< Y_k, mm (or mm per unit time)
+  int index[4] = {0, 0, 0, 0};                        ///< global particle indices: vertex, then the triangle's corners
+  double weight[4] = {-1, 0, 0, 0};                   ///< a_j
+  Eigen::Vector3d change = Eigen::Vector3d::Zero();   ///< Y_k, mm (or mm per unit time)
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< n_k
-  bool unilateral = true;              ///< may only push apart (spring, reaction); false: attachment (reference)
+  bool unilateral = true;  ///< may only push apart (spring, reaction); false: attachment (reference)
 };
 
 /// Settings of the global resolution.
 struct GlobalContactOptions {
-  int maxIterations = 100;    ///< conjugate-gradient iterations per solve (≥ 1)
-  double tolerance = 1e-4;    ///< stop when the preconditioned residual falls below this share of the first (> 0)
+  int maxIterations = 100;       ///< conjugate-gradient iterations per solve (≥ 1)
+  double tolerance = 1e-4;       ///< stop when the preconditioned residual falls below this share of the first (> 0)
   double regularization = 1e-6;  ///< ε added to H's diagonal, relative to its mean (≥ 0): bounds dependent contacts'
                                  ///< multipliers and the conditioning; each contact then reaches its change to ~ε
-  int activeSetRounds = 4;    ///< most solves of the active-set loop over unilateral rows (1 = one plain solve)
+  int activeSetRounds = 4;       ///< most solves of the active-set loop over unilateral rows (1 = one plain solve)
 };
 
 /// What the last global solve did.
 struct GlobalContactReport {
-  int rows = 0;          ///< contacts in the system (free ones)
-  int iterations = 0;    ///< conjugate-gradient iterations over all rounds
-  double residual = 0;   ///< relative preconditioned residual left
-  int dropped = 0;       ///< times a unilateral row was let go because it pulled
+  int rows = 0;         ///< contacts in the system (free ones)
+  int iterations = 0;   ///< conjugate-gradient iterations over all rounds
+  double residual = 0;  ///< relative preconditioned residual left
+  int dropped = 0;      ///< times a unilateral row was let go because it pulled
 };
 
 /// Global collision resolution (DESIGN-NOTES §5, thesis seed): solves Y = H W with Y_k = `rows[k].change`,

@@ -2,12 +2,11 @@
 /// The partner side of vertex–surface collisions (DESIGN-NOTES §3): a closed triangulated surface whose corners are
 /// particles of a stacked system, with its connectivity set up once and a uniform grid over its triangles rebuilt
 /// once per step (TriangleGrid), shared by every collision set that tests vertices against it.
+#include <Eigen/Core>
 #include <memory>
 #include <mutex>
 #include <unordered_map>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_grid.h"
 #include "msk/core/triangle_mesh.h"
@@ -43,10 +42,10 @@ class CollisionSurface {
 
   Triangles tri_;
   double reach_;
-  int idxLo_ = 0, idxHi_ = -1;            ///< range of the surface's particle indices
-  std::vector<int> vtStart_, vtTri_;      ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
+  int idxLo_ = 0, idxHi_ = -1;        ///< range of the surface's particle indices
+  std::vector<int> vtStart_, vtTri_;  ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
   std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
-  TriangleGrid grid_;                     ///< over the triangles at the positions of the last update()
+  TriangleGrid grid_;  ///< over the triangles at the positions of the last update()
   Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();  ///< the grid's box
   mutable std::unique_ptr<WindingNumber> winding_;  ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;

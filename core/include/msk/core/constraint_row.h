@@ -20,14 +20,14 @@ constexpr int kMaxRowParticles = 5;
 ///   u = C/|C|); the non-symmetric 2-simplex blocks (r ≠ g) are replaced by these symmetric ones (Table 4.25).
 /// Σ rj = 0 over a row's particles means its corrections and forces carry no linear momentum.
 struct ConstraintRow {
-  int count = 0;                  ///< particles used, ≤ kMaxRowParticles
-  int index[kMaxRowParticles];    ///< particle indices (global in a set's rows, 0 .. count − 1 from a kernel)
-  double grad[kMaxRowParticles];  ///< gj, ∂C/∂Pj = gj I
+  int count = 0;                   ///< particles used, ≤ kMaxRowParticles
+  int index[kMaxRowParticles];     ///< particle indices (global in a set's rows, 0 .. count − 1 from a kernel)
+  double grad[kMaxRowParticles];   ///< gj, ∂C/∂Pj = gj I
   double react[kMaxRowParticles];  ///< rj, ΔPj = wj rj Δλ
   Eigen::Vector3d c = Eigen::Vector3d::Zero();  ///< residual C, mm
-  double gamma = 1.0;        ///< user stiffness of this constraint, γ ∈ [0, 1] (set stiffness × weight)
-  bool direction = false;    ///< target direction (anisotropic derivative) rather than target position
-  bool compliant = true;     ///< false: a hard constraint (contacts), which XPBD solves with zero compliance
+  double gamma = 1.0;      ///< user stiffness of this constraint, γ ∈ [0, 1] (set stiffness × weight)
+  bool direction = false;  ///< target direction (anisotropic derivative) rather than target position
+  bool compliant = true;   ///< false: a hard constraint (contacts), which XPBD solves with zero compliance
 };
 
 /// Σ gj rj wj over the row's particles, `w` the inverse masses of the whole system: its generalised inverse mass W.

@@ -1,10 +1,9 @@
 #pragma once
 /// A family of constraints (ConstraintSet): the constraints of one kind over one object's particles, exposed one by
 /// one as rows (constraint_row.h) so that every scheme of solver.h runs them alike.
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "msk/core/constraint_row.h"
 #include "msk/core/triangle_mesh.h"

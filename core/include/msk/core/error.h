@@ -44,11 +44,11 @@ class InternalError : public Error {
 };
 
 /// Throws InternalError with file, line and message when cond is false.
-#define MSK_ASSERT(cond, msg)                                                                   \
-  do {                                                                                          \
-    if (!(cond))                                                                                \
-      throw ::msk::InternalError(std::string(__FILE__) + ":" + std::to_string(__LINE__) +       \
-                                 ": assertion '" #cond "' failed: " + std::string(msg));        \
+#define MSK_ASSERT(cond, msg)                                                             \
+  do {                                                                                    \
+    if (!(cond))                                                                          \
+      throw ::msk::InternalError(std::string(__FILE__) + ":" + std::to_string(__LINE__) + \
+                                 ": assertion '" #cond "' failed: " + std::string(msg));  \
   } while (0)
 
 }  // namespace msk

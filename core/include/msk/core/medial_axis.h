@@ -2,9 +2,8 @@
 /// Medial axes of tubular objects and the radial constraints that bind a surface to its axis (DESIGN-NOTES §4):
 /// a 1-simplex curve built by slicing the surface along its principal axis, every surface vertex attached to its
 /// projection on the curve with a reference radius, and a two-way interaction constraint that restores that radius.
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
@@ -195,7 +194,7 @@ class GeneralisedCylinder {
   static Points tangents(const Points& axis);
   Points refSurface_, refAxis_, refOffset_;  ///< P̃, Q̃, P̃ − Q̃̄
   RadialAttachment att_;
-  Eigen::VectorXd carried_;                  ///< Σ_v cj(v) per axis vertex
+  Eigen::VectorXd carried_;  ///< Σ_v cj(v) per axis vertex
 };
 
 }  // namespace msk

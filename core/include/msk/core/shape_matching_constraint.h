@@ -1,9 +1,8 @@
 #pragma once
 /// Global shape prior (shape matching, DESIGN-NOTES §1): every vertex pulled toward the best-fitting transform of its
 /// reference shape.
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/transform_fit.h"

@@ -24,10 +24,9 @@
 ///              end) and b.applyRange(p, begin, end) over [0, size()); every step but addCounts() may be split over
 ///              threads. A set counted alone with no row skipped and b.equalShares(w) may instead call
 ///              b.applyEqualShares(p, omega, begin, end) after computeRange() (every share ω/4).
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/graph_colouring.h"
 #include "msk/core/simplex_mesh.h"
@@ -176,11 +175,11 @@ class SimplexInternalBatch {
   // sums over them do not depend on the batch's order): the row (revRow_) and the place of its coefficient
   // (revFlat_: 8·row + 4 + slot, its record at revFlat_ & ~7).
   std::vector<int> revStart_, revRow_, revFlat_;
-  std::vector<int> tFlat_;  ///< with uniform4_: revFlat_ entry e of the particle at place i at e·n + i
-  int ringChunk_ = 512;      ///< places per chunk of jacobiEqualSharesPacked() (a power of two)
-  std::vector<int> tRing_;   ///< tFlat_ with each row r at its ring record r mod 4·ringChunk_
+  std::vector<int> tFlat_;           ///< with uniform4_: revFlat_ entry e of the particle at place i at e·n + i
+  int ringChunk_ = 512;              ///< places per chunk of jacobiEqualSharesPacked() (a power of two)
+  std::vector<int> tRing_;           ///< tFlat_ with each row r at its ring record r mod 4·ringChunk_
   std::vector<double> ring_, next_;  ///< its ring of records, and the packed copy it writes (swapped with pos_)
-  bool uniform4_ = false;  ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
+  bool uniform4_ = false;            ///< every particle in exactly 4 rows (a closed 2-simplex mesh): the vector apply
   std::vector<std::uint8_t> kept_;
   Eigen::VectorXi ownCounts_;
 };

@@ -3,10 +3,9 @@
 /// mesh pulled toward its shape-memory target, its three neighbours taking the reaction. simplexInternalRow() is the
 /// definition; the set (SimplexInternalConstraints) owns indices, reference parameters and stiffness, and its batch
 /// kernel (simplex_batch.h) computes the same rows several at a time with the constants below.
+#include <Eigen/Core>
 #include <memory>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"

@@ -1,11 +1,10 @@
 #pragma once
 /// k-simplex meshes (every vertex has exactly k+1 neighbours) as structs of arrays, and the 2-simplex ↔
 /// triangle-mesh duality (DESIGN-NOTES §1).
+#include <Eigen/Core>
 #include <map>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 
@@ -17,9 +16,9 @@ using NeighborTable = Eigen::Matrix<int, Eigen::Dynamic, Eigen::Dynamic, Eigen::
 /// A k-simplex mesh: k = 1 curve (medial axis), k = 2 closed surface, k = 3 volume.
 /// For k = 2 the neighbours (P1, P2, P3) of a vertex are ordered so that (P2−P1)×(P3−P1) points outward.
 struct SimplexMesh {
-  int k = 2;                                          ///< simplex order
-  Points positions;                                   ///< #V×3, world mm
-  NeighborTable neighbors;                            ///< #V×(k+1) vertex indices
+  int k = 2;                ///< simplex order
+  Points positions;         ///< #V×3, world mm
+  NeighborTable neighbors;  ///< #V×(k+1) vertex indices
   /// k = 2 only: the mesh's faces (polygons, one per vertex of the primal triangle mesh) in CSR form:
   /// face f has vertices faceVertices[faceOffsets[f] .. faceOffsets[f+1]), ordered counter-clockwise from outside.
   std::vector<int> faceOffsets, faceVertices;

@@ -11,19 +11,18 @@
 ///
 /// Every set's constraints are rows (ConstraintRow): image targets, 2-simplex internal, global prior, radial,
 /// 3-simplex and collision contacts alike. Sequential Gauss–Seidel runs each set's project() (its rows in order); the
-/// coloured, Jacobi and XPBD schemes run the rows colour by colour or summed, the force-based ones turn them into forces
-/// with their derivatives. A set without rows (axis centring, volume preservation, global contact resolution) is run
-/// through project() by the position-based schemes, and by Jacobi and the force-based ones as SolverOptions::rowless
-/// says. Every scheme calls each set's velocity passes: ConstraintSet::correctBeforePrediction() at the start of every
-/// substep, and ConstraintSet::correctVelocities() after the velocity update of every substep (after the damping on a
-/// step's last substep), which is where collision response in acceleration and velocity mode acts
-/// (collision_response.h).
+/// coloured, Jacobi and XPBD schemes run the rows colour by colour or summed, the force-based ones turn them into
+/// forces with their derivatives. A set without rows (axis centring, volume preservation, global contact resolution) is
+/// run through project() by the position-based schemes, and by Jacobi and the force-based ones as
+/// SolverOptions::rowless says. Every scheme calls each set's velocity passes: ConstraintSet::correctBeforePrediction()
+/// at the start of every substep, and ConstraintSet::correctVelocities() after the velocity update of every substep
+/// (after the damping on a step's last substep), which is where collision response in acceleration and velocity mode
+/// acts (collision_response.h).
+#include <Eigen/Core>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/constraint_set.h"
 
@@ -51,8 +50,8 @@ std::vector<Scheme> allSchemes();
 enum class RowlessSets {
   Project,  ///< projected in order on the positions after each Jacobi iteration or force-based substep, the
             ///< velocities following the correction (collision response by position correction, DESIGN-NOTES §3)
-  Blend     ///< Jacobi: averaged with the rows' corrections; force-based: forces M Δp dt⁻² of a projection on a copy
-            ///< with the isotropic diagonal derivative −M dt⁻² I
+  Blend  ///< Jacobi: averaged with the rows' corrections; force-based: forces M Δp dt⁻² of a projection on a copy
+         ///< with the isotropic diagonal derivative −M dt⁻² I
 };
 
 /// What SolverOptions::stiffness means to XPBD.
@@ -66,20 +65,21 @@ enum class XpbdStiffness {
 /// Settings of Solver (user input).
 struct SolverOptions {
   Scheme scheme = Scheme::GaussSeidel;  ///< evolution scheme
-  double dt = 1.0;           ///< time step of one step() (> 0); with α = γ m̄ dt⁻² it cancels from PBD corrections
-  int substeps = 1;          ///< substeps per step (≥ 1), each of dt / substeps: predict, solve, update velocities
-  int iterations = 1;        ///< position-based: projection sweeps per substep (≥ 1); unused by the force-based ones
-  double damping = 0.5;      ///< ∈ [0, 1]: share of each velocity's deviation from the rigid motion removed per step
-  double drag = 0.5;         ///< ∈ [0, 1]: share of the remaining velocity removed per step (1 = quasi-static)
-  double omega = 1.0;        ///< Jacobi relaxation ω ∈ (0, 2): scales every averaged correction
-  double stiffness = 1.0;    ///< XPBD stiffness k ≥ 0 (see xpbdStiffness; +inf = hard, 0 = off), times each row's γ
-                             ///< (rows that are not ConstraintRow::compliant are always hard)
+  double dt = 1.0;         ///< time step of one step() (> 0); with α = γ m̄ dt⁻² it cancels from PBD corrections
+  int substeps = 1;        ///< substeps per step (≥ 1), each of dt / substeps: predict, solve, update velocities
+  int iterations = 1;      ///< position-based: projection sweeps per substep (≥ 1); unused by the force-based ones
+  double damping = 0.5;    ///< ∈ [0, 1]: share of each velocity's deviation from the rigid motion removed per step
+  double drag = 0.5;       ///< ∈ [0, 1]: share of the remaining velocity removed per step (1 = quasi-static)
+  double omega = 1.0;      ///< Jacobi relaxation ω ∈ (0, 2): scales every averaged correction
+  double stiffness = 1.0;  ///< XPBD stiffness k ≥ 0 (see xpbdStiffness; +inf = hard, 0 = off), times each row's γ
+                           ///< (rows that are not ConstraintRow::compliant are always hard)
   XpbdStiffness xpbdStiffness = XpbdStiffness::Absolute;  ///< unit of `stiffness`
-  double forceDamping = 1.0; ///< force-based: damping ratio ζ ≥ 0 of the projected damping F = −β (v·F̂) F̂, β = 2ζ√(α m̄)
-  double anisotropy = 0.9;   ///< force-based: k ∈ [0, 1] of direction targets, ∂F/∂P ≈ −α (k I + (1 − k) uuᵀ)
-  int cgIterations = 200;    ///< implicit: most conjugate-gradient iterations per substep (≥ 1)
+  double forceDamping =
+      1.0;  ///< force-based: damping ratio ζ ≥ 0 of the projected damping F = −β (v·F̂) F̂, β = 2ζ√(α m̄)
+  double anisotropy = 0.9;  ///< force-based: k ∈ [0, 1] of direction targets, ∂F/∂P ≈ −α (k I + (1 − k) uuᵀ)
+  int cgIterations = 200;      ///< implicit: most conjugate-gradient iterations per substep (≥ 1)
   double cgTolerance = 1e-10;  ///< implicit: stop when the preconditioned residual falls below this share (> 0)
-  int threads = 1;           ///< threads (≥ 1; 0 = all cores); results do not depend on it
+  int threads = 1;             ///< threads (≥ 1; 0 = all cores); results do not depend on it
   RowlessSets rowless = RowlessSets::Project;  ///< sets without rows under Jacobi and the force-based schemes
   bool batchKernels = true;  ///< coloured Gauss–Seidel (PBD) and Jacobi run a set's batch kernel where it has one
                              ///< (2-simplex internal, shape memory: SimplexInternalConstraints::batch()), which gives

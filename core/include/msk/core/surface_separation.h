@@ -1,8 +1,8 @@
 #pragma once
 /// Final separation of touching closed surfaces (the output meshes of a scene): every vertex or face centroid of one
-/// surface found inside or within the gap of a declared partner is moved out with the collision position correction of Table 4.23
-/// (spring target, DESIGN-NOTES §3), shared with the partner triangle's corners so linear momentum is conserved. The
-/// side is decided by the partner's winding number, which stays right where a surface folds.
+/// surface found inside or within the gap of a declared partner is moved out with the collision position correction of
+/// Table 4.23 (spring target, DESIGN-NOTES §3), shared with the partner triangle's corners so linear momentum is
+/// conserved. The side is decided by the partner's winding number, which stays right where a surface folds.
 #include <vector>
 
 #include "msk/core/triangle_mesh.h"
@@ -12,8 +12,9 @@ namespace msk {
 /// Settings of separateSurfaces() (user input).
 struct SeparationOptions {
   double reachMm = 3.0;  ///< how far from a partner's surface vertices are examined (> gap), mm
-  double maxReachMm = 10.0;  ///< a pair found deeper inside each other gets a reach covering its deepest vertex, up to this
-  int maxSweeps = 32;    ///< sweeps over every pair and direction
+  double maxReachMm =
+      10.0;            ///< a pair found deeper inside each other gets a reach covering its deepest vertex, up to this
+  int maxSweeps = 32;  ///< sweeps over every pair and direction
   double toleranceMm = 0.05;  ///< a sweep that found nothing inside and corrected nothing by more calls the check, mm
   int threads = 1;  ///< threads (0 = all cores); pairs sharing no surface run together, same result for any count
 };
@@ -26,16 +27,17 @@ struct SeparationPair {
 
 /// What separateSurfaces() did.
 struct SeparationReport {
-  int sweeps = 0;       ///< sweeps run
-  long corrections = 0; ///< vertex corrections applied over all sweeps
-  bool clean = false;   ///< the last sweep (a full check) found no sample inside a partner
+  int sweeps = 0;        ///< sweeps run
+  long corrections = 0;  ///< vertex corrections applied over all sweeps
+  bool clean = false;    ///< the last sweep (a full check) found no sample inside a partner
 };
 
 /// Moves the surfaces' vertices (in place) until a full check (every sample, side from the winding number) finds no
 /// sample (vertex or face centroid) of either surface of a pair inside the other, or maxSweeps is reached. Pairs that
 /// share no surface run in parallel (colour by colour, so any thread count gives the same surfaces); a pair found with
-/// nothing to do is skipped until another pair moves one of its surfaces. `inverseMass` gives each surface's (uniform) inverse mass: a heavier
-/// surface (a bone) moves less. Throws ParameterError for bad options or pair indices, Error on size mismatches.
+/// nothing to do is skipped until another pair moves one of its surfaces. `inverseMass` gives each surface's (uniform)
+/// inverse mass: a heavier surface (a bone) moves less. Throws ParameterError for bad options or pair indices, Error on
+/// size mismatches.
 SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
                                   const std::vector<SeparationPair>& pairs, const SeparationOptions& opts = {});
 

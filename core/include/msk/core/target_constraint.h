@@ -1,8 +1,7 @@
 #pragma once
 /// Independent target constraints (image forces, DESIGN-NOTES §2): each vertex pulled toward a target of its own.
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "msk/core/constraint_set.h"
 

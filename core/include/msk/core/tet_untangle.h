@@ -11,9 +11,8 @@
 /// limit L (a ball around its start, plus the anchor term β|x − x_start|²/L² so it moves no more than it must).
 /// Moving nodes inside a mesh does not change the sum of signed volumes; moving only interior nodes keeps the total
 /// volume exactly.
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "msk/core/volume_simplex.h"
 
@@ -24,8 +23,8 @@ struct TetUntangleOptions {
   /// A movable node is optimised while one of its tets has a relative volume V_t/R_t under this (dimensionless;
   /// +infinity optimises every movable node in every sweep, i.e. smoothing).
   double minRelativeVolume = 0.05;
-  int maxSweeps = 200;    ///< Gauss–Seidel sweeps at most (a sweep visits only the nodes that qualify)
-  double sharpness = 20;  ///< k of the energy (dimensionless): how much more a flat tet weighs than a good one
+  int maxSweeps = 200;      ///< Gauss–Seidel sweeps at most (a sweep visits only the nodes that qualify)
+  double sharpness = 20;    ///< k of the energy (dimensionless): how much more a flat tet weighs than a good one
   double anchorWeight = 1;  ///< β of the anchor term of nodes with a finite move limit (dimensionless)
   /// Sweeps stop once no node moved more than this fraction of its tets' length scale (cube root of R_t).
   double tolerance = 1e-4;
@@ -33,10 +32,10 @@ struct TetUntangleOptions {
 
 /// What untangleTets() did.
 struct TetUntangleReport {
-  int invertedBefore = 0;  ///< tets with V ≤ 0 at the start
-  int invertedAfter = 0;   ///< tets with V ≤ 0 at the end
-  int sweeps = 0;          ///< sweeps run
-  int moves = 0;           ///< node moves kept
+  int invertedBefore = 0;             ///< tets with V ≤ 0 at the start
+  int invertedAfter = 0;              ///< tets with V ≤ 0 at the end
+  int sweeps = 0;                     ///< sweeps run
+  int moves = 0;                      ///< node moves kept
   double minRelativeVolumeAfter = 0;  ///< smallest V_t/R_t at the end
 };
 
@@ -49,10 +48,10 @@ TetUntangleReport untangleTets(TetMesh& mesh, const Eigen::VectorXd& moveLimit, 
 
 /// What untangleTetMesh() did.
 struct TetMeshUntangleReport {
-  TetUntangleReport interior;   ///< first pass: interior nodes only
-  TetUntangleReport boundary;   ///< second pass (sweeps = 0 if not needed): boundary nodes near inverted tets too
-  int invertedAfter = 0;        ///< tets with V ≤ 0 at the end
-  int boundaryNodesMoved = 0;   ///< boundary nodes the second pass moved
+  TetUntangleReport interior;        ///< first pass: interior nodes only
+  TetUntangleReport boundary;        ///< second pass (sweeps = 0 if not needed): boundary nodes near inverted tets too
+  int invertedAfter = 0;             ///< tets with V ≤ 0 at the end
+  int boundaryNodesMoved = 0;        ///< boundary nodes the second pass moved
   double largestBoundaryMoveMm = 0;  ///< how far the furthest of them moved
 };
 

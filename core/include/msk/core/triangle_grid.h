@@ -1,9 +1,8 @@
 #pragma once
 /// Closest points on a triangle mesh through a uniform grid over its faces' bounding boxes: the search structure of
 /// collision partners (a bounded query, rebuilt every step) and of surface transfers (an unbounded query).
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "msk/core/triangle_mesh.h"
 
@@ -60,8 +59,8 @@ class TriangleGrid {
   };
   Layout layout_;
   int triangles_ = 0;
-  std::vector<int> start_;        ///< cell → its range of items_ (CSR)
-  std::vector<CellItem> items_;   ///< each cell's triangles, by index
+  std::vector<int> start_;         ///< cell → its range of items_ (CSR)
+  std::vector<CellItem> items_;    ///< each cell's triangles, by index
   mutable std::vector<int> seen_;  ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
 };

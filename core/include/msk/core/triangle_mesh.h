@@ -1,9 +1,8 @@
 #pragma once
 /// Closed triangle surface meshes as structs of arrays, in world millimetres (RAS inside mskseg).
+#include <Eigen/Core>
 #include <map>
 #include <string>
-
-#include <Eigen/Core>
 
 namespace msk {
 
@@ -14,8 +13,8 @@ using Triangles = Eigen::Matrix<int, Eigen::Dynamic, 3>;
 
 /// A triangle surface mesh with named per-vertex scalar arrays.
 struct TriangleMesh {
-  Points vertices;                                    ///< #V×3 positions, mm
-  Triangles faces;                                    ///< #F×3 indices into vertices
+  Points vertices;                                   ///< #V×3 positions, mm
+  Triangles faces;                                   ///< #F×3 indices into vertices
   std::map<std::string, Eigen::VectorXd> pointData;  ///< per-vertex scalars, each of length #V
 
   /// Number of vertices.

@@ -8,14 +8,14 @@
 ///
 /// "Unless the image demands otherwise": the set first watches the surface evolve under the image forces without
 /// acting, for at least `minObserveProjections` projections and then until its volume settles (changes by less than
-/// `settleRate` of V* between two projections), at most `maxObserveProjections` projections. If the settled volume is within `tolerance` of the reference V* (the
-/// template's), the change is taken for the image force's own bias (blur, partial volume) and the volume is held at
-/// V* from then on; if it has moved further, the image demands another volume and the set never acts.
-#include <string>
-
+/// `settleRate` of V* between two projections), at most `maxObserveProjections` projections. If the settled volume is
+/// within `tolerance` of the reference V* (the template's), the change is taken for the image force's own bias (blur,
+/// partial volume) and the volume is held at V* from then on; if it has moved further, the image demands another volume
+/// and the set never acts.
 #include <Eigen/Core>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <string>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
@@ -24,8 +24,8 @@ namespace msk {
 
 /// Options of VolumePreservation.
 struct VolumePreservationOptions {
-  double stiffness = 1.0;       ///< γ ∈ [0, 1] of the volume constraint once it holds
-  double tolerance = 0.10;      ///< |V/V* − 1| up to which the image is not taken to demand a volume change
+  double stiffness = 1.0;          ///< γ ∈ [0, 1] of the volume constraint once it holds
+  double tolerance = 0.10;         ///< |V/V* − 1| up to which the image is not taken to demand a volume change
   double settleRate = 0.002;       ///< |ΔV| / V* between projections under which the volume has settled
   int minObserveProjections = 1;   ///< projections watched at least
   int maxObserveProjections = 30;  ///< projections watched at most before deciding (0 = hold from the start)

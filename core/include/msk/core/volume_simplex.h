@@ -14,11 +14,9 @@
 /// volume model through the 3-simplex constraints of the boundary tets. A surface of another resolution can drive
 /// the ghosts through SurfaceTransfer (bind the ghosts' rest positions to its triangles once, then carry its
 /// displacements over as targets).
-#include <string>
-
-#include <vector>
-
 #include <Eigen/Core>
+#include <string>
+#include <vector>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/simplex_mesh.h"
@@ -113,8 +111,8 @@ TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& posi
 /// As tetsFromVolumeSimplex(), with the nodes `fixedNodes` held at the rows of `fixedPositions` (#F×3, mm) and only the
 /// others solved for, e.g. the boundary nodes placed on the evolved surface's vertices. Throws ParameterError on sizes
 /// that do not match or a node index out of range.
-TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& positions, const Eigen::VectorXi& fixedNodes,
-                              const Points& fixedPositions);
+TetMesh tetsFromVolumeSimplex(const VolumeSimplexMesh& model, const Points& positions,
+                              const Eigen::VectorXi& fixedNodes, const Points& fixedPositions);
 
 /// The tets' equilibrium under their 3-simplex constraints with the ghosts held (SurfaceDriven), nearest to where
 /// they are: returns `positions` (#(T+B)×3) with the tet rows x replaced by argmin Σ_t |Σ ε̃i Pi − P_t|² + μ|x − x₀|²

@@ -2,9 +2,8 @@
 /// Inside/outside of a closed surface that stays meaningful where the surface folds or touches itself: the generalised
 /// winding number (Jacobson, Kavan and Sorkine-Hornung 2013), with distant groups of triangles replaced by their
 /// dipole, as in the fast winding numbers of Barill et al. 2018 (order 1 on a flat grid of clusters).
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "msk/core/triangle_mesh.h"
 
@@ -49,7 +48,7 @@ class WindingNumber {
   double sum(const Eigen::Vector3d& q, const Corner& corner) const;
   Points v_;
   Triangles f_;
-  Triangles given_;  ///< the faces as given (indices into the caller's vertex array)
+  Triangles given_;    ///< the faces as given (indices into the caller's vertex array)
   int givenRows_ = 0;  ///< rows of the vertex array given to the constructor
   double far_;
   std::vector<Cluster> clusters_;  ///< fine clusters, grouped: group g owns clusters_[groups_[g].begin, end)

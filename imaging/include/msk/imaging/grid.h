@@ -1,20 +1,19 @@
 #pragma once
 /// The sampling grid of a volume in world space: the only place voxel↔world conversion happens.
+#include <Eigen/Core>
 #include <array>
 #include <cstddef>
 #include <string>
-
-#include <Eigen/Core>
 
 namespace msk {
 
 /// Voxel grid geometry. World = NIfTI RAS millimetres:
 /// world = origin + direction · diag(spacing) · (i, j, k), voxel (0,0,0) at `origin`.
 struct Grid {
-  Eigen::Vector3i dims = Eigen::Vector3i::Ones();          ///< voxels along i, j, k
-  Eigen::Vector3d spacing = Eigen::Vector3d::Ones();       ///< mm per voxel along i, j, k (all > 0)
+  Eigen::Vector3i dims = Eigen::Vector3i::Ones();           ///< voxels along i, j, k
+  Eigen::Vector3d spacing = Eigen::Vector3d::Ones();        ///< mm per voxel along i, j, k (all > 0)
   Eigen::Matrix3d direction = Eigen::Matrix3d::Identity();  ///< columns: unit RAS directions of i, j, k (det ±1)
-  Eigen::Vector3d origin = Eigen::Vector3d::Zero();        ///< RAS mm of voxel (0,0,0)
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();         ///< RAS mm of voxel (0,0,0)
 
   /// Number of voxels.
   size_t voxelCount() const {
@@ -22,7 +21,9 @@ struct Grid {
   }
   /// Linear index of voxel (i, j, k), i fastest (NIfTI order).
   size_t index(int i, int j, int k) const {
-    return static_cast<size_t>(i) + static_cast<size_t>(dims[0]) * (static_cast<size_t>(j) + static_cast<size_t>(dims[1]) * static_cast<size_t>(k));
+    return static_cast<size_t>(i) +
+           static_cast<size_t>(dims[0]) *
+               (static_cast<size_t>(j) + static_cast<size_t>(dims[1]) * static_cast<size_t>(k));
   }
   /// True if integer voxel (i, j, k) lies in the grid.
   bool contains(int i, int j, int k) const {
@@ -32,8 +33,9 @@ struct Grid {
   /// indices base + p·stride for p in [0, dims[axis]). Separable filters and distance transforms run on these.
   template <typename F>
   void forEachLine(int axis, F&& f) const {
-    const size_t stride = axis == 0 ? 1 : axis == 1 ? static_cast<size_t>(dims[0])
-                                                    : static_cast<size_t>(dims[0]) * static_cast<size_t>(dims[1]);
+    const size_t stride = axis == 0   ? 1
+                          : axis == 1 ? static_cast<size_t>(dims[0])
+                                      : static_cast<size_t>(dims[0]) * static_cast<size_t>(dims[1]);
     const int u = axis == 0 ? 1 : 0, w = axis == 2 ? 1 : 2;  // the other two axes enumerate the lines
     for (int b = 0; b < dims[w]; ++b)
       for (int a = 0; a < dims[u]; ++a) {
@@ -64,7 +66,8 @@ struct Grid {
 
   /// Builds a grid from a 4×4 voxel→world affine whose 3×3 part is orthogonal up to per-column scale.
   /// Returns false (grid untouched) if a column is zero or columns are not orthogonal within `tolDegrees`.
-  static bool fromAffine(const Eigen::Vector3i& dims, const Eigen::Matrix4d& affine, Grid& out, double tolDegrees = 0.1);
+  static bool fromAffine(const Eigen::Vector3i& dims, const Eigen::Matrix4d& affine, Grid& out,
+                         double tolDegrees = 0.1);
   /// Direction matrix from rotations (degrees) about the x, then y, then z axes.
   static Eigen::Matrix3d rotationXYZ(const Eigen::Vector3d& degrees);
 };

@@ -1,9 +1,8 @@
 #pragma once
 /// JSON documents (scene files, reports): nlohmann::ordered_json, which keeps keys in insertion order and writes
 /// doubles so that they read back bit for bit, with the project's strict reading and writing rules.
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 namespace msk {
 

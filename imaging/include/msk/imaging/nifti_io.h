@@ -1,8 +1,7 @@
 #pragma once
 /// NIfTI-1 / NIfTI-2 reading and writing (.nii, .nii.gz) in world space (RAS mm).
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "msk/imaging/volume.h"
 
@@ -21,17 +20,18 @@ const char* affineSourceName(AffineSource s);
 
 /// What a NIfTI header said, beyond the grid.
 struct NiftiInfo {
-  std::string path;                                  ///< file read
-  int version = 1;                                   ///< 1 or 2
-  DataType datatype = DataType::Float32;             ///< stored datatype
-  AffineSource affineSource = AffineSource::Pixdim;  ///< which form gave the grid
-  int sformCode = 0, qformCode = 0;                  ///< header codes
+  std::string path;                                     ///< file read
+  int version = 1;                                      ///< 1 or 2
+  DataType datatype = DataType::Float32;                ///< stored datatype
+  AffineSource affineSource = AffineSource::Pixdim;     ///< which form gave the grid
+  int sformCode = 0, qformCode = 0;                     ///< header codes
   Eigen::Matrix4d sform = Eigen::Matrix4d::Identity();  ///< sform as stored (valid if sformCode > 0)
-  Eigen::Matrix4d qform = Eigen::Matrix4d::Identity();  ///< qform as computed from the quaternion (valid if qformCode > 0)
-  double sclSlope = 1, sclInter = 0;                 ///< scaling applied on read (slope 0 means none)
-  bool scaled = false;                               ///< true if slope/intercept changed the values
-  size_t nonFiniteCount = 0;                         ///< NaN/Inf voxels found (after scaling)
-  double minValue = 0, maxValue = 0;                 ///< range of finite values (after scaling)
+  Eigen::Matrix4d qform =
+      Eigen::Matrix4d::Identity();    ///< qform as computed from the quaternion (valid if qformCode > 0)
+  double sclSlope = 1, sclInter = 0;  ///< scaling applied on read (slope 0 means none)
+  bool scaled = false;                ///< true if slope/intercept changed the values
+  size_t nonFiniteCount = 0;          ///< NaN/Inf voxels found (after scaling)
+  double minValue = 0, maxValue = 0;  ///< range of finite values (after scaling)
 };
 
 /// Options for reading.
@@ -50,9 +50,9 @@ Volume<T> readNifti(const std::string& path, NiftiInfo* info = nullptr, const Ni
 
 /// Options for writing.
 struct NiftiWriteOptions {
-  int version = 1;                   ///< 1 or 2 (NIfTI-2 for dims > 32767)
-  const NiftiInfo* like = nullptr;   ///< copy sform/qform exactly from this header (label maps on the input grid)
-  std::string description;           ///< descrip field (truncated to 79 characters)
+  int version = 1;                  ///< 1 or 2 (NIfTI-2 for dims > 32767)
+  const NiftiInfo* like = nullptr;  ///< copy sform/qform exactly from this header (label maps on the input grid)
+  std::string description;          ///< descrip field (truncated to 79 characters)
 };
 
 /// Writes `vol` stored as `type` (values must fit; no scaling), gzipped if the name ends in .gz, atomically.

@@ -10,7 +10,7 @@ namespace msk {
 /// Voxel values of type T on a world-space grid.
 template <typename T>
 struct Volume {
-  Grid grid;           ///< geometry
+  Grid grid;            ///< geometry
   std::vector<T> data;  ///< grid.voxelCount() values, i fastest
 
   Volume() = default;

@@ -1,10 +1,9 @@
 #pragma once
 /// Synthetic T1-weighted thigh MRI with exact ground truth (femur, muscle compartments, fat, skin).
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/log.h"
 #include "msk/core/triangle_mesh.h"
@@ -16,11 +15,11 @@ namespace msk {
 
 /// Phantom parameters (user input only).
 struct PhantomOptions {
-  uint32_t seed = 1;                                          ///< anatomy and noise vary with it
-  Eigen::Vector3d spacing = Eigen::Vector3d(1.2, 1.2, 3.0);   ///< mm
-  Eigen::Vector3d obliqueDegrees = Eigen::Vector3d::Zero();   ///< grid rotation about x, y, z
-  double noise = 0.03;                                        ///< Rician noise sigma, fraction of fat intensity
-  double bias = 0.15;                                         ///< bias field amplitude (0 = none, fraction)
+  uint32_t seed = 1;                                         ///< anatomy and noise vary with it
+  Eigen::Vector3d spacing = Eigen::Vector3d(1.2, 1.2, 3.0);  ///< mm
+  Eigen::Vector3d obliqueDegrees = Eigen::Vector3d::Zero();  ///< grid rotation about x, y, z
+  double noise = 0.03;                                       ///< Rician noise sigma, fraction of fat intensity
+  double bias = 0.15;                                        ///< bias field amplitude (0 = none, fraction)
   bool meshes = true;          ///< compute truth and template meshes (false: image, labels and tissues only; faster)
   int meshVertices = 3000;     ///< target vertex count of each truth and template mesh
   double meshSpacingMm = 0.8;  ///< step of the fine grid on which the implicit surfaces are sampled for meshing
@@ -33,31 +32,31 @@ void checkPhantomOptions(const PhantomOptions& opts);
 
 /// Tissue classes of the phantom image (values of Phantom::tissues).
 enum class PhantomTissue : int32_t {
-  Air = 0,               ///< outside the skin (intensity 0)
-  Skin = 1,              ///< 1.5 mm skin layer (0.45)
-  Fat = 2,               ///< subcutaneous fat, septa, periosteal gap (1.0)
-  Muscle = 3,            ///< muscle compartments (0.35)
-  Cortex = 4,            ///< cortical bone (0.08)
-  Marrow = 5,            ///< fatty marrow (0.85)
-  IntramuscularFat = 6   ///< thin fat streaks inside muscles, labelled as their muscle (0.7)
+  Air = 0,              ///< outside the skin (intensity 0)
+  Skin = 1,             ///< 1.5 mm skin layer (0.45)
+  Fat = 2,              ///< subcutaneous fat, septa, periosteal gap (1.0)
+  Muscle = 3,           ///< muscle compartments (0.35)
+  Cortex = 4,           ///< cortical bone (0.08)
+  Marrow = 5,           ///< fatty marrow (0.85)
+  IntramuscularFat = 6  ///< thin fat streaks inside muscles, labelled as their muscle (0.7)
 };
 
 /// One anatomical structure of the phantom.
 struct PhantomObject {
-  std::string name;      ///< "femur", "quadriceps", ...
-  int32_t label = 0;     ///< value in the label map
-  std::string kind;      ///< "bone" | "muscle" | "generic"
-  TriangleMesh truth;    ///< ground-truth surface for this seed, RAS mm
-  TriangleMesh templ;    ///< mean-anatomy surface (seed-independent), RAS mm
+  std::string name;                   ///< "femur", "quadriceps", ...
+  int32_t label = 0;                  ///< value in the label map
+  std::string kind;                   ///< "bone" | "muscle" | "generic"
+  TriangleMesh truth;                 ///< ground-truth surface for this seed, RAS mm
+  TriangleMesh templ;                 ///< mean-anatomy surface (seed-independent), RAS mm
   std::vector<std::string> touching;  ///< names of the structures this one touches (collision pairs)
 };
 
 /// A generated phantom.
 struct Phantom {
-  ImageF image;                       ///< T1-weighted intensities
-  LabelMap labels;                    ///< exact labels on the image grid
-  std::vector<PhantomObject> objects; ///< structures with labels > 0
-  LabelMap tissues;                   ///< PhantomTissue class at each voxel centre (same grid as the image)
+  ImageF image;                              ///< T1-weighted intensities
+  LabelMap labels;                           ///< exact labels on the image grid
+  std::vector<PhantomObject> objects;        ///< structures with labels > 0
+  LabelMap tissues;                          ///< PhantomTissue class at each voxel centre (same grid as the image)
   std::string generator = "mskseg-phantom";  ///< generator name written into scene.json's "phantom" key
 };
 

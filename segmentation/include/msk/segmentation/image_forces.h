@@ -2,12 +2,11 @@
 /// Image forces (DESIGN-NOTES §7): per vertex, a target point searched along the normal within ±range mm, either the
 /// strongest gradient of the expected polarity or the best normalised cross-correlation with a learned intensity
 /// profile; scores regularised over mesh neighbours. The targets become independent constraints.
+#include <Eigen/Core>
 #include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/simplex_mesh.h"
 #include "msk/imaging/volume.h"
@@ -42,11 +41,11 @@ enum class TargetMode {
 struct TargetSearchOptions {
   TargetMode mode = TargetMode::Gradient;  ///< criterion
   Polarity polarity = Polarity::Auto;      ///< expected edge direction
-  double rangeMm = 0;        ///< search ±range along the normal; 0 → 4 × the largest voxel spacing
-  double stepMm = 0;         ///< sampling step along the normal; 0 → 0.25 × the smallest voxel spacing
-  double distancePenalty = 0.1;  ///< score reduction per mm of displacement (relative to the best score)
-  double profileHalfLengthMm = 0;  ///< half length of learned profiles; 0 → 2 × the largest voxel spacing
-  int regularisationRings = 1;     ///< neighbour rings over which target offsets are smoothed (0 = none)
+  double rangeMm = 0;                      ///< search ±range along the normal; 0 → 4 × the largest voxel spacing
+  double stepMm = 0;                       ///< sampling step along the normal; 0 → 0.25 × the smallest voxel spacing
+  double distancePenalty = 0.1;            ///< score reduction per mm of displacement (relative to the best score)
+  double profileHalfLengthMm = 0;          ///< half length of learned profiles; 0 → 2 × the largest voxel spacing
+  int regularisationRings = 1;             ///< neighbour rings over which target offsets are smoothed (0 = none)
   /// Gradient mode: when finite, an edge counts only if the smoothed (normalised) intensity crosses this level across
   /// it, from the inside's side to the outside's (estimateEdgeLevel); NaN: every edge of the right polarity counts.
   double edgeLevel = std::numeric_limits<double>::quiet_NaN();
@@ -54,17 +53,17 @@ struct TargetSearchOptions {
 
 /// Per-vertex intensity profiles learned on the template's initial position (Profile mode).
 struct LearnedProfiles {
-  double stepMm = 0;           ///< sample spacing along the normal
-  int halfSamples = 0;         ///< samples on each side of the surface
-  Eigen::MatrixXd profiles;    ///< #V × (2·halfSamples+1), zero-mean unit-norm rows
+  double stepMm = 0;         ///< sample spacing along the normal
+  int halfSamples = 0;       ///< samples on each side of the surface
+  Eigen::MatrixXd profiles;  ///< #V × (2·halfSamples+1), zero-mean unit-norm rows
 };
 
 /// Result of one target search.
 struct TargetSearchResult {
-  Points targets;             ///< #V×3 target positions (world mm); equal to the vertex where nothing was found
-  Eigen::VectorXd offsets;    ///< signed offset along the normal (mm)
-  Eigen::VectorXd scores;     ///< ≥ 0 confidence per vertex (0: no edge found, no force)
-  Eigen::VectorXd residual;   ///< |offset| before regularisation (the "image residual", mm)
+  Points targets;            ///< #V×3 target positions (world mm); equal to the vertex where nothing was found
+  Eigen::VectorXd offsets;   ///< signed offset along the normal (mm)
+  Eigen::VectorXd scores;    ///< ≥ 0 confidence per vertex (0: no edge found, no force)
+  Eigen::VectorXd residual;  ///< |offset| before regularisation (the "image residual", mm)
 };
 
 /// Estimates the polarity from the mean intensity sampled 0.5–3 mm inside vs outside along the normals.

@@ -9,8 +9,8 @@
 #include "msk/core/collision_response.h"
 #include "msk/core/shape_matching_constraint.h"
 #include "msk/core/simplex_internal_constraint.h"
-#include "msk/imaging/json.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/imaging/json.h"
 #include "msk/segmentation/image_forces.h"
 
 namespace msk {
@@ -31,21 +31,21 @@ struct ObjectModel {
   bool globalPrior = true;        ///< false ("global_prior": false): no global shape prior
   std::optional<PriorTransform> priorTransform;  ///< "global_prior": "rigid"|"similarity"|"affine"; unset = run's
   TargetMode imageForce = TargetMode::Gradient;  ///< "image_force" (or the object-level synonym "force")
-  bool medialAxis = false;        ///< "medial_axis": a 1-simplex medial axis with two-way radial constraints
-  double radialStiffness = -1;    ///< "radial_stiffness": γ of the radial constraints, [0, 1]; < 0 = run default
-  double axisSpacingMm = -1;      ///< "axis_spacing_mm": distance between axis vertices, mm, > 0; < 0 = run default
+  bool medialAxis = false;      ///< "medial_axis": a 1-simplex medial axis with two-way radial constraints
+  double radialStiffness = -1;  ///< "radial_stiffness": γ of the radial constraints, [0, 1]; < 0 = run default
+  double axisSpacingMm = -1;    ///< "axis_spacing_mm": distance between axis vertices, mm, > 0; < 0 = run default
   /// "axis_first": run the axis-first coarse stage (the object moves as a generalised cylinder of its axis before its
   /// full-surface evolution; needs "medial_axis"); unset = the run's (AxisOptions::first)
   std::optional<bool> axisFirst;
-  /// "refine": the object takes part in the refinement pass (ImageSearchOptions::refinePass: its converged surface as its
-  /// reference shape, the gradient force with the edge level); unset = the run's
+  /// "refine": the object takes part in the refinement pass (ImageSearchOptions::refinePass: its converged surface as
+  /// its reference shape, the gradient force with the edge level); unset = the run's
   std::optional<bool> refine;
   /// "remesh": the template is remeshed isotropically before the evolution (SurfaceOptions::remeshTemplates); false
   /// keeps its own triangulation (the output is then on it); unset = the run's for muscles and generic objects, kept
   /// for bones (segmenter.h)
   std::optional<bool> remesh;
-  bool volumetric = false;        ///< "volumetric": a coupled 3-simplex volume model
-  double volumeStiffness = -1;    ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
+  bool volumetric = false;      ///< "volumetric": a coupled 3-simplex volume model
+  double volumeStiffness = -1;  ///< "volume_stiffness": γ of the 3-simplex internal constraint, [0, 1]; < 0 = run's
 };
 
 /// The model an object of kind `k` gets when its scene entry says nothing (the one place defaults by kind live).
@@ -80,15 +80,15 @@ struct SceneObject {
 
 /// One collision pair of a scene. Parameters < 0 take the run's value (SegmentOptions).
 struct CollisionPair {
-  int a = 0, b = 0;          ///< object indices, a < b
-  double gapMm = -1;         ///< "gap_mm": clearance g kept between the partners, mm, ≥ 0
-  double proximityMm = -1;   ///< "proximity_mm": contact search reach d_max beyond the gap, mm, > 0
-  double friction = -1;      ///< "friction": μ ∈ [0, 1]
-  CollisionMode mode = CollisionMode::Position;      ///< "mode": "position" | "velocity" | "acceleration"
+  int a = 0, b = 0;                              ///< object indices, a < b
+  double gapMm = -1;                             ///< "gap_mm": clearance g kept between the partners, mm, ≥ 0
+  double proximityMm = -1;                       ///< "proximity_mm": contact search reach d_max beyond the gap, mm, > 0
+  double friction = -1;                          ///< "friction": μ ∈ [0, 1]
+  CollisionMode mode = CollisionMode::Position;  ///< "mode": "position" | "velocity" | "acceleration"
   CollisionTarget target = CollisionTarget::Spring;  ///< "target": "spring" | "reaction" | "reference"
   /// "resolution": "sequential" | "global"; unset = the run's (CollisionOptions::resolution)
   std::optional<CollisionResolution> resolution = std::nullopt;
-  bool fromAuto = false;     ///< found by an "auto" entry (templates within its distance), not declared by name
+  bool fromAuto = false;  ///< found by an "auto" entry (templates within its distance), not declared by name
 };
 
 /// The "auto" entry of a scene's collisions: every pair of objects whose templates come within `withinMm` of each
@@ -100,11 +100,11 @@ struct AutoCollisions {
 
 /// A scene: objects and declared collision pairs (indices into objects).
 struct Scene {
-  std::string path;                               ///< the scene file
-  std::vector<SceneObject> objects;               ///< in file order
-  std::vector<CollisionPair> collisions;          ///< declared pairs in file order, then auto pairs; no duplicates
-  std::optional<AutoCollisions> autoCollisions;   ///< the "auto" entry, if the scene has one
-  std::string description;                        ///< "description": free text (optional)
+  std::string path;                              ///< the scene file
+  std::vector<SceneObject> objects;              ///< in file order
+  std::vector<CollisionPair> collisions;         ///< declared pairs in file order, then auto pairs; no duplicates
+  std::optional<AutoCollisions> autoCollisions;  ///< the "auto" entry, if the scene has one
+  std::string description;                       ///< "description": free text (optional)
   /// "provenance": what made the scene (a generator's name and parameters, source files), kept as given; null if
   /// absent, else a JSON object.
   Json provenance;

@@ -39,9 +39,9 @@ struct EvolutionOptions {
   /// Threads of the coloured, Jacobi and CG schemes and of collision detection, 0..1024 (0 = all cores); results do
   /// not depend on it.
   int threads = 1;
-  double dt = 1.0;            ///< time step of one step (> 0; it cancels from position-based corrections)
-  double damping = 0.5;       ///< share of each velocity's deviation from the rigid motion removed per step, [0, 1]
-  double drag = 0.5;          ///< share of the remaining velocity removed per step, [0, 1]
+  double dt = 1.0;             ///< time step of one step (> 0; it cancels from position-based corrections)
+  double damping = 0.5;        ///< share of each velocity's deviation from the rigid motion removed per step, [0, 1]
+  double drag = 0.5;           ///< share of the remaining velocity removed per step, [0, 1]
   double xpbdStiffness = 4.0;  ///< XPBD k, mass-relative (XpbdStiffness::MassRelative): k × the force stiffness
   double jacobiOmega = 1.5;    ///< Jacobi relaxation ω ∈ (0, 2)
 };
@@ -50,8 +50,8 @@ struct EvolutionOptions {
 struct ShapeOptions {
   double internalStiffness = 1.0;                         ///< γ of the 2-simplex shape memory, [0, 1]
   InternalMode internalMode = InternalMode::ShapeMemory;  ///< shape memory or smoothing
-  double priorStart = 0.3;  ///< global prior weight λ at the start of the run, [0, 1]
-  double priorEnd = 0.1;    ///< λ at the end of the run (ramped linearly), [0, 1]
+  double priorStart = 0.3;                                ///< global prior weight λ at the start of the run, [0, 1]
+  double priorEnd = 0.1;                                  ///< λ at the end of the run (ramped linearly), [0, 1]
   PriorTransform priorTransform = PriorTransform::Similarity;  ///< kind of the global fit
 };
 
@@ -90,8 +90,8 @@ struct ImageSearchOptions {
 
 /// Contacts between the objects of the scene's collision pairs, and the separation of the output surfaces.
 struct CollisionOptions {
-  bool enabled = true;     ///< respond to the scene's collision pairs (false: objects ignore each other)
-  double gapMm = 0.2;      ///< default clearance g kept between partners, mm, [0, 10] (a pair in the scene may override)
+  bool enabled = true;  ///< respond to the scene's collision pairs (false: objects ignore each other)
+  double gapMm = 0.2;   ///< default clearance g kept between partners, mm, [0, 10] (a pair in the scene may override)
   double proximityMm = 0;  ///< contact search reach beyond the gap, mm, [0, 50] (0 = max(1 mm, ½ the largest spacing))
   double friction = 0;     ///< default friction μ ∈ [0, 1]
   /// Bone particles are this many times heavier than muscle ones (they share less of a contact), [0.001, 1000].
@@ -101,8 +101,8 @@ struct CollisionOptions {
   /// Velocity- and acceleration-mode pairs: a vertex more than this far inside its partner (mm, ≥ 0) gets a position
   /// correction in the projection phase (CollisionResponse::positionBeyondMm).
   double positionBeyondMm = 0.0;
-  int finalSweeps = 10;      ///< collision-only detect + project sweeps after the last step, 0..1000
-  int sideTestEvery = 10;    ///< steps between inside/outside tests of contacts, 0..100000 (0 = first step only)
+  int finalSweeps = 10;       ///< collision-only detect + project sweeps after the last step, 0..1000
+  int sideTestEvery = 10;     ///< steps between inside/outside tests of contacts, 0..100000 (0 = first step only)
   int separationSweeps = 32;  ///< most sweeps of the output-surface separation of declared pairs, 0..1000 (0 = none)
 };
 
@@ -115,8 +115,8 @@ struct AxisOptions {
   /// axis (GeneralisedCylinder, driven by the surface's image targets) before the coarsest level's full-surface
   /// evolution; the template bent by the stage's axis is their reference shape from then on.
   bool first = false;
-  int firstSteps = 40;           ///< step cap of the axis-first stage (it stops earlier on the tolerance), 0..100000
-  AxisFirstOptions firstStage;   ///< image gain and axis shape memory of the axis-first stage, each [0, 1]
+  int firstSteps = 40;          ///< step cap of the axis-first stage (it stops earlier on the tolerance), 0..100000
+  AxisFirstOptions firstStage;  ///< image gain and axis shape memory of the axis-first stage, each [0, 1]
 };
 
 /// 3-simplex volume models of the objects whose model asks for one.

@@ -8,8 +8,8 @@
 
 #include "msk/core/collision_response.h"
 #include "msk/core/log.h"
-#include "msk/core/volume_simplex.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/core/volume_simplex.h"
 #include "msk/imaging/volume.h"
 #include "msk/segmentation/image_forces.h"
 #include "msk/segmentation/scene.h"
@@ -52,17 +52,17 @@ struct LevelReport {
 struct ObjectResult {
   std::string name;
   int label = 0;
-  TriangleMesh mesh;  ///< final surface, RAS mm; point data "displacement_mm" and "image_residual_mm"
+  TriangleMesh mesh;                   ///< final surface, RAS mm; point data "displacement_mm" and "image_residual_mm"
   Polarity polarity = Polarity::Auto;  ///< the polarity used (estimated if auto)
   std::vector<LevelReport> levels;     ///< coarse first
   double seconds = 0;                  ///< evolution time, shared equally among the objects evolved together
   double volumeMm3 = 0, templateVolumeMm3 = 0;
-  double meanImageResidualMm = 0;      ///< mean |target offset| at the end
+  double meanImageResidualMm = 0;                  ///< mean |target offset| at the end
   std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
-  TetMesh volumeMesh;                  ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
-  double volumeModelMm3 = 0;           ///< its volume, mm³ (0 without a volume model)
-  double volumeModelTemplateMm3 = 0;   ///< the volume of the tetrahedralised template, mm³
-  int invertedTets = 0;                ///< tets of volumeMesh with volume ≤ 0 (flat slivers of the mesher flip first)
+  TetMesh volumeMesh;                 ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
+  double volumeModelMm3 = 0;          ///< its volume, mm³ (0 without a volume model)
+  double volumeModelTemplateMm3 = 0;  ///< the volume of the tetrahedralised template, mm³
+  int invertedTets = 0;               ///< tets of volumeMesh with volume ≤ 0 (flat slivers of the mesher flip first)
   /// What the volume model's volume constraint decided (volume_preservation.h): "holding" the template's volume,
   /// "following" the image (it demanded another), or "observing" (never settled); empty without a volume model.
   std::string volumeDecision;
@@ -81,15 +81,15 @@ struct SegmentationResult {
   ResolvedSettings settings;  ///< preset applied
   std::vector<PairResponse> collisionResponses;  ///< per scene pair (scene order; empty without collisions)
   std::vector<AxisFirstReport> axisFirst;        ///< per object that ran the axis-first stage
-  double seconds = 0;         ///< whole run
+  double seconds = 0;                            ///< whole run
   /// Seconds per stage: "features", "evolution" (with "axis-first" a part of it), "collision-detection",
   /// "separation", "surface-check", "rasterise".
   std::map<std::string, double> secondsPerStage;
-  int featureScalesBuilt = 0;    ///< distinct image scales computed (each once)
-  int collisionSetsBuilt = 0;    ///< directed vertex–surface collision sets built over all levels (0 without pairs)
-  int volumeModelsBuilt = 0;     ///< objects given a 3-simplex volume model (0 unless a model asks)
-  int medialAxesBuilt = 0;       ///< objects given a medial axis with radial constraints (0 unless a model asks)
-  size_t overlapVoxels = 0;      ///< voxels inside more than one object's surface
+  int featureScalesBuilt = 0;  ///< distinct image scales computed (each once)
+  int collisionSetsBuilt = 0;  ///< directed vertex–surface collision sets built over all levels (0 without pairs)
+  int volumeModelsBuilt = 0;   ///< objects given a 3-simplex volume model (0 unless a model asks)
+  int medialAxesBuilt = 0;     ///< objects given a medial axis with radial constraints (0 unless a model asks)
+  size_t overlapVoxels = 0;    ///< voxels inside more than one object's surface
   /// Per declared pair (scene order): the deepest vertex of either output surface inside the other (winding-number
   /// side, mm, 0 if none), measured on the meshes written out.
   std::vector<double> pairPenetrationMm;

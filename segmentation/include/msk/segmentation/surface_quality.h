@@ -10,10 +10,10 @@ namespace msk {
 /// (CGAL's isotropic remeshing: edge splits, collapses and flips, then tangential relaxation projected back onto the
 /// input surface; the edge length comes from the area), then offset along its normals to enclose the input's volume. A
 /// template of long thin triangles (decimated isosurfaces of elongated muscles: edges from 0.2 to 28 mm) has a badly
-/// shaped 2-simplex dual whose vertices fold under image forces; remeshed, it does not (docs/method.md, Surface quality).
-/// Deterministic; orientation and genus kept; per-vertex arrays dropped. A result that is not closed, or crosses itself
-/// where the input does not, is tried again at edge lengths 3 % and 6 % shorter and longer; the input is returned
-/// unchanged if none passes. Throws Error if the input is not closed, ParameterError if targetVertices < 4.
+/// shaped 2-simplex dual whose vertices fold under image forces; remeshed, it does not (docs/method.md, Surface
+/// quality). Deterministic; orientation and genus kept; per-vertex arrays dropped. A result that is not closed, or
+/// crosses itself where the input does not, is tried again at edge lengths 3 % and 6 % shorter and longer; the input is
+/// returned unchanged if none passes. Throws Error if the input is not closed, ParameterError if targetVertices < 4.
 TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices);
 
 /// Number of pairs of faces of a closed mesh that intersect other than at a vertex or edge they share (CGAL box

@@ -17,7 +17,8 @@ struct TetOptions {
   /// Sliver exudation (CGAL's exuder, after the optional optimisers below): far fewer flat tets. It may break ties by
   /// memory address, so the connectivity can differ between runs in one process. Off by default.
   bool exude = false;
-  /// Sliver perturbation (CGAL's perturber: moves the nodes of the flattest tets, deterministic generator). Off by default.
+  /// Sliver perturbation (CGAL's perturber: moves the nodes of the flattest tets, deterministic generator). Off by
+  /// default.
   bool perturb = false;
   /// ODT smoothing of the interior nodes (CGAL's odt_optimize_mesh_3, at most `optimiseIterations` passes).
   bool odt = false;
@@ -39,8 +40,8 @@ struct TetOptions {
 /// Tetrahedralises the inside of a closed, outward-oriented triangle surface (world mm) with CGAL Mesh_3
 /// (polyhedral domain, Exact_predicates_inexact_constructions_kernel, sequential; optimisers as `options` say; no
 /// sharp-feature protection, so creases are rounded at the facet distance). Every tet is positively oriented; nodes not
-/// used by a tet are dropped. Nodes and tets come in a canonical order (nodes by coordinates), so the result depends only on
-/// the input and the options (fixed seed; exudation aside, see TetOptions::exude); Steiner nodes of
+/// used by a tet are dropped. Nodes and tets come in a canonical order (nodes by coordinates), so the result depends
+/// only on the input and the options (fixed seed; exudation aside, see TetOptions::exude); Steiner nodes of
 /// TetOptions::interiorNodes come after the mesher's nodes. Throws Error if the surface is not closed and
 /// consistently oriented (closedMeshProblem), encloses no volume, or the mesher yields no tet, and ParameterError on a
 /// negative size or an out-of-range angle or ratio.

@@ -1,8 +1,7 @@
 #pragma once
 /// The meshes tests and benchmarks share: simplex spheres, perturbed copies, joined and displaced surfaces.
-#include <random>
-
 #include <Eigen/Core>
+#include <random>
 
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_mesh.h"

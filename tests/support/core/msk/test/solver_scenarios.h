@@ -2,11 +2,10 @@
 /// Solver scenarios on simplex spheres, shared by the core tests (which assert on them) and bench/solver_bench.cpp
 /// (which reports their figures): every scheme on one problem, XPBD's iteration independence, the mass-relative
 /// stiffness, momentum drift through whole steps, and the smoothing mode of the internal constraint left alone.
+#include <Eigen/Core>
 #include <memory>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/constraint_set.h"
 #include "msk/core/shape_matching_constraint.h"

@@ -1,10 +1,9 @@
 #pragma once
 /// The volumes tests and benchmarks share: ball and ellipsoid images with partial volume, ball label maps, a sphere's
 /// signed distance, and the real-scan helpers (label centroids, boxes around meshes, crops). World mm throughout.
+#include <Eigen/Core>
 #include <functional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/volume.h"

@@ -3,10 +3,9 @@
 /// bench/phantom_bench.cpp (which reports their figures): a tube bent in the image reached from a straight, displaced
 /// template, and the bundled phantom's hamstrings and adductors from moved templates, each with no medial axis, with
 /// the axis alone and with the axis evolved first.
+#include <Eigen/Core>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/volume.h"

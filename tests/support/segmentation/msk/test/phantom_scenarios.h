@@ -3,11 +3,10 @@
 /// reports their figures): the femur of the bundled phantom and of five other phantoms segmented from the mean
 /// template, and the whole thigh scene (femur and three muscle compartments with their collision pairs) on the bundled
 /// phantom and on the other five.
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/phantom/phantom.h"
 #include "msk/segmentation/metrics.h"

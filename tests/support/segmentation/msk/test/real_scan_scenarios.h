@@ -5,11 +5,10 @@
 /// scaled by ±3 % (a template is never exactly in place); the profile force learns each object's profiles on the
 /// structure its template came from. Scores are taken on the full grid against the reference labels
 /// (TotalSegmentator's).
+#include <Eigen/Core>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/volume.h"

@@ -4,9 +4,8 @@
 /// template its true surface moved rigidly (the image asks for no change of volume) or also scaled (the image asks for
 /// one), measured against the true volume. The muscles: the bundled phantom's, and the left autochthon muscle of
 /// totalseg-mr from its own label.
-#include <string>
-
 #include <Eigen/Core>
+#include <string>
 
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/volume.h"
