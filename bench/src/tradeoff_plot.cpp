@@ -5,11 +5,10 @@
 #include <cstdio>
 #include <numeric>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
+#include "msk/segmentation/png_file.h"
 
 namespace msk {
 
@@ -129,15 +128,7 @@ void writeTradeoffPlot(const std::string& path, const std::vector<TradeoffPoint>
   text(pic, "circle: scheme", {left + plotW + 15, legendY + 18}, 0.42, blue);
   text(pic, "red, *: Pareto front", {left + plotW + 15, legendY + 36}, 0.42, red);
 
-  writeAtomically(path, [&](const std::string& tmp) {
-    bool ok = false;
-    try {
-      ok = cv::imwrite(tmp, pic);
-    } catch (const cv::Exception& e) {
-      throw IoError(path, std::string("cannot write PNG: ") + e.what());
-    }
-    if (!ok) throw IoError(path, "cannot write PNG");
-  });
+  writePngAtomically(path, pic);
 }
 
 }  // namespace msk

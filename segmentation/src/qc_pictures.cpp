@@ -10,9 +10,9 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
-#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
+#include "msk/segmentation/png_file.h"
 
 namespace fs = std::filesystem;
 
@@ -181,15 +181,7 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
       text(pic, v.topLetter, cv::Point(p.width / 2 - 4, 32));
 
       const std::string path = (fs::path(dir) / (safeFileName(obj.name) + "_" + v.name + ".png")).string();
-      writeAtomically(path, [&](const std::string& tmp) {
-        bool ok = false;
-        try {
-          ok = cv::imwrite(tmp, pic);
-        } catch (const cv::Exception& e) {
-          throw IoError(path, std::string("cannot write PNG: ") + e.what());
-        }
-        if (!ok) throw IoError(path, "cannot write PNG");
-      });
+      writePngAtomically(path, pic);
       written.push_back(path);
     }
   }

@@ -9,22 +9,12 @@
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"
+#include "msk/test/tet_surface.h"
 
 namespace {
 
-/// The 3-simplex constraint's residual C = Σ ε̃i Pi − P of every vertex of `model` at `positions` (its rows with
-/// VolumeBoundary::Constrained; zero for vertices without one), mm.
-inline msk::Points volumeResiduals(const msk::VolumeSimplexMesh& model, const msk::Points& positions) {
-  msk::VolumeSimplexConstraints rows(model, 1.0, msk::VolumeBoundary::Constrained);
-  const Eigen::VectorXd w = Eigen::VectorXd::Ones(positions.rows());
-  msk::Points r = msk::Points::Zero(positions.rows(), 3);
-  msk::ConstraintRow row;
-  for (int k = 0; k < rows.rowCount(); ++k)
-    if (rows.row(k, positions, w, row)) r.row(row.index[0]) = row.c.transpose();
-  return r;
-}
-
 using msk::test::uniformVector;
+using msk::test::volumeResiduals;
 
 /// Inverse masses: tets free (1), ghosts fixed (0).
 Eigen::VectorXd ghostsFixed(const msk::VolumeSimplexMesh& vm) {

@@ -12,22 +12,11 @@
 #include "msk/core/error.h"
 #include "msk/core/tet_split.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/test/tet_surface.h"
+
+using msk::test::volumeResiduals;
 
 // A sphere of radius 20 mm: the tet mesh fills the surface's volume, is positively oriented and repeatable.
-namespace {
-/// The 3-simplex constraint's residual C = Σ ε̃i Pi − P of every vertex of `model` at `positions` (its rows with
-/// VolumeBoundary::Constrained; zero for vertices without one), mm.
-inline msk::Points volumeResiduals(const msk::VolumeSimplexMesh& model, const msk::Points& positions) {
-  msk::VolumeSimplexConstraints rows(model, 1.0, msk::VolumeBoundary::Constrained);
-  const Eigen::VectorXd w = Eigen::VectorXd::Ones(positions.rows());
-  msk::Points r = msk::Points::Zero(positions.rows(), 3);
-  msk::ConstraintRow row;
-  for (int k = 0; k < rows.rowCount(); ++k)
-    if (rows.row(k, positions, w, row)) r.row(row.index[0]) = row.c.transpose();
-  return r;
-}
-}  // namespace
-
 TEST(Tetrahedralize, SphereVolumeOrientationAndDeterminism) {
   const msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
   const double surfaceVolume = msk::enclosedVolume(sphere);

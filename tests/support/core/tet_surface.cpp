@@ -22,4 +22,14 @@ TetSurfaceOffsets tetSurfaceOffsets(const TetMesh& tets, const TriangleMesh& sur
   return o;
 }
 
+Points volumeResiduals(const VolumeSimplexMesh& model, const Points& positions) {
+  VolumeSimplexConstraints rows(model, 1.0, VolumeBoundary::Constrained);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(positions.rows());
+  Points r = Points::Zero(positions.rows(), 3);
+  ConstraintRow row;
+  for (int k = 0; k < rows.rowCount(); ++k)
+    if (rows.row(k, positions, w, row)) r.row(row.index[0]) = row.c.transpose();
+  return r;
+}
+
 }  // namespace msk::test

@@ -1,7 +1,7 @@
 #pragma once
 /// How well a volume model's tet mesh sits on its surface: the distance from each surface vertex to the nearest
 /// boundary node of the tets (the segmenter puts them on the surface's vertices, moving a few where the surface leaves
-/// no room for its tets).
+/// no room for its tets); and the residuals of its 3-simplex constraints.
 #include "msk/core/triangle_mesh.h"
 #include "msk/core/volume_simplex.h"
 
@@ -16,5 +16,9 @@ struct TetSurfaceOffsets {
   double meanEdgeMm = 0;    ///< the surface's mean edge length
 };
 TetSurfaceOffsets tetSurfaceOffsets(const TetMesh& tets, const TriangleMesh& surface);
+
+/// The 3-simplex constraint's residual C = Σ ε̃i Pi − P of every vertex of `model` at `positions` (its rows with
+/// VolumeBoundary::Constrained; zero for vertices without one), mm.
+Points volumeResiduals(const VolumeSimplexMesh& model, const Points& positions);
 
 }  // namespace msk::test

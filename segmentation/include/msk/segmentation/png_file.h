@@ -1,0 +1,15 @@
+#pragma once
+/// Writing a picture as a PNG file atomically (OpenCV's encoder; the caller includes <opencv2/core.hpp>).
+#include <string>
+
+namespace cv {
+class Mat;
+}
+
+namespace msk {
+
+/// Writes `picture` (8-bit grey or BGR) to `path` as a PNG through a temporary file and a rename; an encoder
+/// failure throws IoError naming `path`.
+void writePngAtomically(const std::string& path, const cv::Mat& picture);
+
+}  // namespace msk
