@@ -13,11 +13,13 @@
 #include "msk/core/error.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/rasterize.h"
+#include "msk/test/volumes.h"
 
 namespace {
 
 using msk::Phantom;
 using msk::PhantomOptions;
+using msk::test::labelDice;
 
 PhantomOptions coarse(uint32_t seed) {
   PhantomOptions o;
@@ -38,17 +40,6 @@ const Phantom& meshed() {
     return std::make_unique<Phantom>(msk::makeMultiPhantom(o));
   }();
   return *p;
-}
-
-double dice(const msk::LabelMap& a, int la, const msk::LabelMap& b, int lb) {
-  size_t na = 0, nb = 0, both = 0;
-  for (size_t n = 0; n < a.data.size(); ++n) {
-    const bool x = a.data[n] == la, y = b.data[n] == lb;
-    na += x;
-    nb += y;
-    both += x && y;
-  }
-  return na + nb == 0 ? 0.0 : 2.0 * static_cast<double>(both) / static_cast<double>(na + nb);
 }
 
 // Unordered label pairs that are 6-adjacent somewhere in the label map (labels > 0 only).
@@ -131,7 +122,7 @@ TEST(MultiPhantom, SameSeedSameOutputOtherSeedOtherAnatomy) {
   EXPECT_TRUE(a.image.data == b.image.data);
   EXPECT_TRUE(a.labels.data == b.labels.data);
   EXPECT_FALSE(a.labels.data == c.labels.data);
-  for (int l = 1; l <= 24; ++l) EXPECT_LT(dice(a.labels, l, c.labels, l), 0.995) << "label " << l;
+  for (int l = 1; l <= 24; ++l) EXPECT_LT(labelDice(a.labels, l, c.labels, l), 0.995) << "label " << l;
 }
 
 TEST(MultiPhantom, TruthMeshesMatchLabelsAndStayInTheirSegment) {
@@ -142,7 +133,7 @@ TEST(MultiPhantom, TruthMeshesMatchLabelsAndStayInTheirSegment) {
     ASSERT_EQ(msk::closedMeshProblem(o.templ), "");
     EXPECT_GT(msk::enclosedVolume(o.truth), 0);
     const msk::LabelMap r = msk::rasterize(o.truth, p.labels.grid);
-    EXPECT_GE(dice(r, 1, p.labels, o.label), 0.93);  // coarse grid: partial voxels weigh more
+    EXPECT_GE(labelDice(r, 1, p.labels, o.label), 0.93);  // coarse grid: partial voxels weigh more
     // Right limbs at x > 0, left at x < 0; thighs above the knee plane z = 0, lower legs below.
     const bool right = o.name.rfind("r_", 0) == 0;
     const bool thigh = o.label <= 12;
@@ -167,7 +158,7 @@ TEST(MultiPhantom, TemplatesAreMeanAnatomyDisplacedFromTruth) {
     EXPECT_TRUE(p.objects[i].templ.vertices == q.objects[i].templ.vertices);  // seed-independent
     EXPECT_FALSE(p.objects[i].truth.vertices == q.objects[i].truth.vertices);
     const msk::LabelMap t = msk::rasterize(p.objects[i].templ, p.labels.grid);
-    const double d = dice(t, 1, p.labels, p.objects[i].label);
+    const double d = labelDice(t, 1, p.labels, p.objects[i].label);
     EXPECT_LT(d, 0.985);  // the seed moved the truth away from the mean
     EXPECT_GT(d, 0.5);    // but the template stays a usable initialisation
   }

@@ -10,13 +10,18 @@
 #include <set>
 
 #include "msk/core/error.h"
+#include "msk/core/simplex_mesh.h"
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/rasterize.h"
 #include "msk/test/files.h"
+#include "msk/test/volumes.h"
 
 namespace {
+
+using msk::test::labelCentroid;
+using msk::test::labelDice;
 
 using msk::Phantom;
 using msk::PhantomOptions;
@@ -75,53 +80,6 @@ size_t countLabel(const msk::LabelMap& m, int32_t label) {
 
 double voxelVolume(const msk::Grid& g) { return g.spacing.prod(); }
 
-Eigen::Vector3d centroid(const msk::LabelMap& m, int32_t label) {
-  Eigen::Vector3d s = Eigen::Vector3d::Zero();
-  size_t n = 0;
-  for (int k = 0; k < m.grid.dims[2]; ++k)
-    for (int j = 0; j < m.grid.dims[1]; ++j)
-      for (int i = 0; i < m.grid.dims[0]; ++i)
-        if (m.at(i, j, k) == label) {
-          s += m.grid.toWorld(Eigen::Vector3d(i, j, k));
-          ++n;
-        }
-  return n ? Eigen::Vector3d(s / static_cast<double>(n)) : s;
-}
-
-double dice(const msk::LabelMap& a, int32_t la, const msk::LabelMap& b, int32_t lb) {
-  size_t na = 0, nb = 0, both = 0;
-  for (size_t n = 0; n < a.data.size(); ++n) {
-    const bool x = a.data[n] == la, y = b.data[n] == lb;
-    na += x;
-    nb += y;
-    both += x && y;
-  }
-  return na + nb ? 2.0 * static_cast<double>(both) / static_cast<double>(na + nb) : 1.0;
-}
-
-// Exact point-to-triangle distance (Ericson, Real-Time Collision Detection, 5.1.5).
-double pointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                             const Eigen::Vector3d& c) {
-  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return ap.norm();
-  const Eigen::Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return bp.norm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
-  const Eigen::Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return cp.norm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
-    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
-  const double denom = 1.0 / (va + vb + vc);
-  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
-}
-
 // Mean distance from the vertices of `from` to the surface of `to` (brute force with bounding-sphere culling).
 double meanVertexToSurface(const msk::TriangleMesh& from, const msk::TriangleMesh& to) {
   std::vector<Eigen::Vector3d> centre(static_cast<size_t>(to.faceCount()));
@@ -140,8 +98,10 @@ double meanVertexToSurface(const msk::TriangleMesh& from, const msk::TriangleMes
     double best = INFINITY;
     for (int f = 0; f < to.faceCount(); ++f) {
       if ((p - centre[static_cast<size_t>(f)]).norm() - radius[static_cast<size_t>(f)] >= best) continue;
-      best = std::min(best, pointTriangleDistance(p, to.vertices.row(to.faces(f, 0)), to.vertices.row(to.faces(f, 1)),
-                                                  to.vertices.row(to.faces(f, 2))));
+      best = std::min(
+          best, (p - msk::closestPointOnTriangle(p, to.vertices.row(to.faces(f, 0)), to.vertices.row(to.faces(f, 1)),
+                                                 to.vertices.row(to.faces(f, 2))))
+                    .norm());
     }
     sum += best;
   }
@@ -157,7 +117,7 @@ void expectMeshesMatchLabels(const Phantom& p, double minDice) {
     EXPECT_GT(msk::enclosedVolume(o.truth), 0);
     EXPECT_NEAR(o.truth.vertexCount(), 3000, 300);
     const msk::LabelMap r = msk::rasterize(o.truth, p.labels.grid);
-    const double d = dice(r, 1, p.labels, o.label);
+    const double d = labelDice(r, 1, p.labels, o.label);
     EXPECT_GE(d, minDice);
     const double labelVolume = static_cast<double>(countLabel(p.labels, o.label)) * voxelVolume(p.labels.grid);
     EXPECT_NEAR(msk::enclosedVolume(o.truth), labelVolume, 0.03 * labelVolume);
@@ -180,7 +140,7 @@ TEST(Phantom, DifferentSeedsGiveDifferentAnatomy) {
   size_t differ = 0;
   for (size_t n = 0; n < a.labels.data.size(); ++n) differ += a.labels.data[n] != b.labels.data[n];
   EXPECT_GT(differ, a.labels.data.size() / 100);
-  const double moved = (centroid(a.labels, 1) - centroid(b.labels, 1)).norm();
+  const double moved = (labelCentroid(a.labels, 1) - labelCentroid(b.labels, 1)).norm();
   EXPECT_GT(moved, 0.5);
   EXPECT_LT(moved, 15.0);
   EXPECT_FALSE(a.image.data == b.image.data);
@@ -222,7 +182,7 @@ TEST(Phantom, LabelsGridAndObjects) {
   }
   // The quadriceps is anterior (+y) of the hamstrings; the femur is closed inside the field of view (no label in the
   // end slices), and the limb is inside in-plane (air at the side borders of every slice).
-  EXPECT_GT(centroid(p.labels, 2)[1], centroid(p.labels, 3)[1] + 20);
+  EXPECT_GT(labelCentroid(p.labels, 2)[1], labelCentroid(p.labels, 3)[1] + 20);
   for (int k : {0, g.dims[2] - 1})
     for (int j = 0; j < g.dims[1]; ++j)
       for (int i = 0; i < g.dims[0]; ++i) ASSERT_EQ(p.labels.at(i, j, k), 0);

@@ -80,6 +80,18 @@ ImageF sphereSdf(const Grid& grid, const Eigen::Vector3d& centre, double radiusM
   return f;
 }
 
+double labelDice(const LabelMap& a, int labelA, const LabelMap& b, int labelB) {
+  if (a.data.size() != b.data.size()) throw Error("labelDice: the label maps differ in size");
+  size_t na = 0, nb = 0, both = 0;
+  for (size_t n = 0; n < a.data.size(); ++n) {
+    const bool x = a.data[n] == labelA, y = b.data[n] == labelB;
+    na += x;
+    nb += y;
+    both += x && y;
+  }
+  return na + nb ? 2.0 * static_cast<double>(both) / static_cast<double>(na + nb) : 1.0;
+}
+
 Eigen::Vector3d labelCentroid(const LabelMap& labels, int label) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double n = 0;

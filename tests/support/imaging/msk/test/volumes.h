@@ -1,6 +1,6 @@
 #pragma once
 /// The volumes tests and benchmarks share: ball and ellipsoid images with partial volume, ball label maps, a sphere's
-/// signed distance, and the real-scan helpers (label centroids, boxes around meshes, crops). World mm throughout.
+/// signed distance, and the real-scan helpers (Dice, label centroids, boxes around meshes, crops). World mm throughout.
 #include <Eigen/Core>
 #include <functional>
 #include <vector>
@@ -33,6 +33,11 @@ LabelMap ballLabels(const Grid& grid, const Eigen::Vector3d& centre, double radi
 
 /// Signed distance (mm) to the sphere of radius `radiusMm` about `centre` at every voxel centre, negative inside.
 ImageF sphereSdf(const Grid& grid, const Eigen::Vector3d& centre, double radiusMm);
+
+/// Dice 2|A∩B| / (|A|+|B|) between the voxels of `a` carrying `labelA` and those of `b` carrying `labelB` (same grid
+/// size required; throws msk::Error otherwise); 1 when both are empty. Overlap only: labelMetrics() adds the
+/// surface distances.
+double labelDice(const LabelMap& a, int labelA, const LabelMap& b, int labelB);
 
 /// Centroid (world mm) of the voxels carrying `label`; throws msk::Error if there are none.
 Eigen::Vector3d labelCentroid(const LabelMap& labels, int label);
