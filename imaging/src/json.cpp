@@ -65,8 +65,6 @@ Json readJsonFile(const std::string& path) {
   if (in.bad()) throw IoError(path, "read failed");
   try {
     return parseJson(text.str());
-  } catch (const IoError&) {
-    throw;
   } catch (const Error& e) {
     throw IoError(path, std::string("invalid JSON: ") + e.what());
   }

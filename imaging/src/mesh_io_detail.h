@@ -126,14 +126,73 @@ double bytesAs(const unsigned char* b) {
   return static_cast<double>(v);
 }
 
+/// Numeric value types of the binary mesh formats (VTK legacy, PLY).
+enum class BinaryType { I8, U8, I16, U16, I32, U32, I64, U64, F32, F64 };
+
+/// Bytes of one value of type `t`.
+inline size_t binarySize(BinaryType t) {
+  switch (t) {
+    case BinaryType::I8:
+    case BinaryType::U8:
+      return 1;
+    case BinaryType::I16:
+    case BinaryType::U16:
+      return 2;
+    case BinaryType::I32:
+    case BinaryType::U32:
+    case BinaryType::F32:
+      return 4;
+    case BinaryType::I64:
+    case BinaryType::U64:
+    case BinaryType::F64:
+      return 8;
+  }
+  return 0;
+}
+
+/// The value of type `t` stored at `p` (binarySize(t) bytes, big-endian if `bigEndian`, else little-endian) as a
+/// double.
+inline double decodeBinary(BinaryType t, const char* p, bool bigEndian) {
+  unsigned char b[8];
+  const size_t n = binarySize(t);
+  std::memcpy(b, p, n);
+  if (bigEndian == hostIsLittleEndian()) std::reverse(b, b + n);
+  switch (t) {
+    case BinaryType::I8:
+      return bytesAs<int8_t>(b);
+    case BinaryType::U8:
+      return bytesAs<uint8_t>(b);
+    case BinaryType::I16:
+      return bytesAs<int16_t>(b);
+    case BinaryType::U16:
+      return bytesAs<uint16_t>(b);
+    case BinaryType::I32:
+      return bytesAs<int32_t>(b);
+    case BinaryType::U32:
+      return bytesAs<uint32_t>(b);
+    case BinaryType::I64:
+      return bytesAs<int64_t>(b);
+    case BinaryType::U64:
+      return bytesAs<uint64_t>(b);
+    case BinaryType::F32:
+      return bytesAs<float>(b);
+    case BinaryType::F64:
+      return bytesAs<double>(b);
+  }
+  return 0;
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // SPACE tags
+
+/// What the written files say they hold (header, title or comment line).
+constexpr const char* kMeshTitle = "mskseg triangle mesh (mm)";
 
 /// "SPACE=LPS" or "SPACE=RAS", the tag written into headers and comments.
 inline std::string tagText(MeshSpace space) { return std::string("SPACE=") + meshSpaceName(space); }
 
 /// Header line of the formats that have one (VTK legacy title, STL header).
-inline std::string headerText(MeshSpace space) { return "mskseg triangle mesh (mm) " + tagText(space); }
+inline std::string headerText(MeshSpace space) { return std::string(kMeshTitle) + " " + tagText(space); }
 
 /// Looks for a "SPACE=<LPS|RAS>" token (case-insensitive) in `text`; true and `out` set if found.
 /// An unknown value after "SPACE=" is an error rather than silently LPS.

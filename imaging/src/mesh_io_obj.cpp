@@ -8,9 +8,9 @@ namespace msk::detail {
 
 namespace {
 
-/// Space tag from OBJ comment lines.
-bool objSpace(const std::string& path, MeshSpace& out) {
-  for (const std::string& line : splitLines(readBytes(path, kHeadBytes))) {
+/// Space tag from the OBJ comment lines in the file's leading bytes `head`.
+bool objSpace(const std::string& head, const std::string& path, MeshSpace& out) {
+  for (const std::string& line : splitLines(head)) {
     const size_t first = line.find_first_not_of(" \t");
     if (first != std::string::npos && line[first] == '#' && findSpaceToken(line.substr(first + 1), path, out))
       return true;
@@ -30,8 +30,8 @@ void appendNumber(std::string& out, double v) {
 // Reads "v x y z" and "f a b c …" records (1-based or negative indices; "a/t/n" forms use the position index
 // only, so texture seams do not split vertices; polygons are fan-triangulated). Vertex order is kept.
 TriangleMesh readObj(const std::string& path, MeshSpace& space) {
-  objSpace(path, space);
   const std::string text = readBytes(path);
+  objSpace(text.substr(0, kHeadBytes), path, space);
   std::vector<double> xyz;
   std::vector<int> tri;
   size_t lineNo = 0;
@@ -75,7 +75,7 @@ TriangleMesh readObj(const std::string& path, MeshSpace& space) {
 }
 
 void writeObj(const std::string& file, const std::string& path, const TriangleMesh& m, MeshSpace space) {
-  std::string out = "# mskseg triangle mesh (mm)\n# " + tagText(space) + "\n";
+  std::string out = "# " + std::string(kMeshTitle) + "\n# " + tagText(space) + "\n";
   out.reserve(out.size() + static_cast<size_t>(m.vertexCount()) * 60 + static_cast<size_t>(m.faceCount()) * 24);
   for (int i = 0; i < m.vertexCount(); ++i) {
     out += 'v';

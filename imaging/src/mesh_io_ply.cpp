@@ -10,7 +10,7 @@ namespace msk::detail {
 
 namespace {
 
-enum class Type { I8, U8, I16, U16, I32, U32, F32, F64 };
+using Type = BinaryType;  // PLY names the 8- to 32-bit integers and both float sizes
 
 bool parseType(const std::string& s, Type& t) {
   static const std::pair<const char*, Type> names[] = {
@@ -24,24 +24,6 @@ bool parseType(const std::string& s, Type& t) {
       return true;
     }
   return false;
-}
-
-size_t sizeOf(Type t) {
-  switch (t) {
-    case Type::I8:
-    case Type::U8:
-      return 1;
-    case Type::I16:
-    case Type::U16:
-      return 2;
-    case Type::I32:
-    case Type::U32:
-    case Type::F32:
-      return 4;
-    case Type::F64:
-      return 8;
-  }
-  return 0;
 }
 
 struct Property {
@@ -138,32 +120,11 @@ class Reader {
 
   double next(Type t) {
     if (enc_ == Encoding::Ascii) return nextText();
-    const size_t n = sizeOf(t);
+    const size_t n = binarySize(t);
     if (pos_ + n > bytes_.size()) throw IoError(path_, "PLY data ends prematurely (truncated file)");
-    unsigned char b[8];
-    std::memcpy(b, bytes_.data() + pos_, n);
+    const double v = decodeBinary(t, bytes_.data() + pos_, enc_ == Encoding::BigEndian);
     pos_ += n;
-    const bool fileLittle = enc_ == Encoding::LittleEndian;
-    if (fileLittle != hostIsLittleEndian()) std::reverse(b, b + n);
-    switch (t) {
-      case Type::I8:
-        return static_cast<double>(static_cast<int8_t>(b[0]));
-      case Type::U8:
-        return static_cast<double>(b[0]);
-      case Type::I16:
-        return bytesAs<int16_t>(b);
-      case Type::U16:
-        return bytesAs<uint16_t>(b);
-      case Type::I32:
-        return bytesAs<int32_t>(b);
-      case Type::U32:
-        return bytesAs<uint32_t>(b);
-      case Type::F32:
-        return bytesAs<float>(b);
-      case Type::F64:
-        return bytesAs<double>(b);
-    }
-    return 0;
+    return v;
   }
   /// Bytes (binary) or characters (ASCII) left: an upper bound on how many values can follow.
   size_t remaining() const { return bytes_.size() - pos_; }
@@ -307,7 +268,7 @@ void writePly(const std::string& file, const std::string& path, const TriangleMe
       if (a.first == prop) throw IoError(path, "two point arrays map to the PLY property '" + prop + "'");
     arrays.emplace_back(prop, &values);
   }
-  std::string out = "ply\nformat binary_little_endian 1.0\ncomment mskseg triangle mesh (mm)\ncomment " +
+  std::string out = "ply\nformat binary_little_endian 1.0\ncomment " + std::string(kMeshTitle) + "\ncomment " +
                     tagText(space) + "\nelement vertex " + std::to_string(m.vertexCount()) +
                     "\nproperty double x\nproperty double y\nproperty double z\n";
   for (const auto& a : arrays) out += "property double " + a.first + "\n";

@@ -14,44 +14,29 @@ namespace msk::detail {
 
 namespace {
 
-enum class ValueType { Bit, I8, U8, I16, U16, I32, U32, I64, U64, F32, F64, String, Unsupported };
+/// A VTK legacy data type: a number of a BinaryType, bits, strings, or a type this reader does not know.
+struct ValueType {
+  enum Kind { Number, Bit, String, Unsupported } kind = Unsupported;
+  BinaryType number = BinaryType::U8;  ///< the number's type, with kind Number
+};
+
+ValueType numberType(BinaryType t) { return {ValueType::Number, t}; }
 
 ValueType parseValueType(const std::string& text) {
   const std::string t = lowercase(text);
-  if (t == "bit") return ValueType::Bit;
-  if (t == "char" || t == "signed_char") return ValueType::I8;
-  if (t == "unsigned_char") return ValueType::U8;
-  if (t == "short") return ValueType::I16;
-  if (t == "unsigned_short") return ValueType::U16;
-  if (t == "int") return ValueType::I32;
-  if (t == "unsigned_int") return ValueType::U32;
-  if (t == "long" || t == "vtktypeint64" || t == "vtkidtype") return ValueType::I64;
-  if (t == "unsigned_long" || t == "vtktypeuint64") return ValueType::U64;
-  if (t == "float") return ValueType::F32;
-  if (t == "double") return ValueType::F64;
-  if (t == "string" || t == "utf8_string") return ValueType::String;
-  return ValueType::Unsupported;
-}
-
-size_t byteSize(ValueType t) {
-  switch (t) {
-    case ValueType::I8:
-    case ValueType::U8:
-      return 1;
-    case ValueType::I16:
-    case ValueType::U16:
-      return 2;
-    case ValueType::I32:
-    case ValueType::U32:
-    case ValueType::F32:
-      return 4;
-    case ValueType::I64:
-    case ValueType::U64:
-    case ValueType::F64:
-      return 8;
-    default:
-      return 0;
-  }
+  if (t == "bit") return {ValueType::Bit};
+  if (t == "char" || t == "signed_char") return numberType(BinaryType::I8);
+  if (t == "unsigned_char") return numberType(BinaryType::U8);
+  if (t == "short") return numberType(BinaryType::I16);
+  if (t == "unsigned_short") return numberType(BinaryType::U16);
+  if (t == "int") return numberType(BinaryType::I32);
+  if (t == "unsigned_int") return numberType(BinaryType::U32);
+  if (t == "long" || t == "vtktypeint64" || t == "vtkidtype") return numberType(BinaryType::I64);
+  if (t == "unsigned_long" || t == "vtktypeuint64") return numberType(BinaryType::U64);
+  if (t == "float") return numberType(BinaryType::F32);
+  if (t == "double") return numberType(BinaryType::F64);
+  if (t == "string" || t == "utf8_string") return {ValueType::String};
+  return {ValueType::Unsupported};
 }
 
 /// Undoes VTK's name encoding ("%20" for a space and so on).
@@ -171,11 +156,11 @@ class Parser {
   /// `n` values of type `t` (binary big-endian data starts on the line after the header; ASCII is tokens).
   /// String arrays are consumed and returned empty. Skips a METADATA block that follows the data.
   std::vector<double> values(ValueType t, size_t n) {
-    if (t == ValueType::Unsupported) fail("unsupported data type");
+    if (t.kind == ValueType::Unsupported) fail("unsupported data type");
     std::vector<double> out;
     if (n == 0) return out;
     if (n > b_.size()) fail("array larger than the file");
-    if (t == ValueType::String) {
+    if (t.kind == ValueType::String) {
       skipStrings(n);
     } else if (!binary_) {
       out.resize(n);
@@ -187,14 +172,14 @@ class Parser {
     } else {
       nextLine();
       out.resize(n);
-      if (t == ValueType::Bit) {
+      if (t.kind == ValueType::Bit) {
         need((n + 7) / 8);
         for (size_t i = 0; i < n; ++i) out[i] = (static_cast<unsigned char>(b_[pos_ + i / 8]) >> (7 - i % 8)) & 1;
         pos_ += (n + 7) / 8;
       } else {
-        const size_t size = byteSize(t);
+        const size_t size = binarySize(t.number);
         need(n * size);
-        for (size_t i = 0; i < n; ++i, pos_ += size) out[i] = bigEndianValue(t, size);
+        for (size_t i = 0; i < n; ++i, pos_ += size) out[i] = decodeBinary(t.number, b_.data() + pos_, true);
       }
     }
     skipOptionalMetadata();
@@ -206,35 +191,6 @@ class Parser {
   void nextLine() {
     const size_t end = b_.find('\n', pos_);
     pos_ = end == std::string::npos ? b_.size() : end + 1;
-  }
-  double bigEndianValue(ValueType t, size_t size) const {
-    unsigned char c[8];
-    for (size_t k = 0; k < size; ++k) c[k] = static_cast<unsigned char>(b_[pos_ + size - 1 - k]);  // → little
-    if (!hostIsLittleEndian()) std::reverse(c, c + size);
-    switch (t) {
-      case ValueType::I8:
-        return bytesAs<int8_t>(c);
-      case ValueType::U8:
-        return bytesAs<uint8_t>(c);
-      case ValueType::I16:
-        return bytesAs<int16_t>(c);
-      case ValueType::U16:
-        return bytesAs<uint16_t>(c);
-      case ValueType::I32:
-        return bytesAs<int32_t>(c);
-      case ValueType::U32:
-        return bytesAs<uint32_t>(c);
-      case ValueType::I64:
-        return bytesAs<int64_t>(c);
-      case ValueType::U64:
-        return bytesAs<uint64_t>(c);
-      case ValueType::F32:
-        return bytesAs<float>(c);
-      case ValueType::F64:
-        return bytesAs<double>(c);
-      default:
-        return 0;
-    }
   }
   /// String arrays: binary values carry a 1/2/4/8-byte big-endian length header, ASCII ones are one per line.
   void skipStrings(size_t n) {
@@ -294,7 +250,7 @@ class Parser {
         cells.push_back(std::move(cell));
       }
     } else {
-      const std::vector<double> raw = values(ValueType::I32, static_cast<size_t>(b));
+      const std::vector<double> raw = values(numberType(BinaryType::I32), static_cast<size_t>(b));
       size_t at = 0;
       while (at < raw.size()) {
         const int n = index(raw[at]);
@@ -319,7 +275,7 @@ class Parser {
       const long long comps = count("component count"), rows = count("tuple count");
       const ValueType t = parseValueType(word());
       const std::vector<double> v = values(t, static_cast<size_t>(comps * rows));
-      if (keep && comps == 1 && rows == tuples && t != ValueType::String)
+      if (keep && comps == 1 && rows == tuples && t.kind != ValueType::String)
         (*keep)[decodeName(name)] = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
     }
   }
@@ -347,16 +303,16 @@ class Parser {
         if (lowercase(next) != "lookup_table") fail("SCALARS without LOOKUP_TABLE");
         word();  // table name
         const std::vector<double> v = values(t, static_cast<size_t>(n * comps));
-        if (keep && comps == 1 && t != ValueType::String)
+        if (keep && comps == 1 && t.kind != ValueType::String)
           (*keep)[name] = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
       } else if (key == "color_scalars") {
         word();
         const long long comps = count("component count");
-        values(binary_ ? ValueType::U8 : ValueType::F32, static_cast<size_t>(n * comps));
+        values(numberType(binary_ ? BinaryType::U8 : BinaryType::F32), static_cast<size_t>(n * comps));
       } else if (key == "lookup_table") {
         word();
         const long long size = count("lookup table size");
-        values(binary_ ? ValueType::U8 : ValueType::F32, static_cast<size_t>(size * 4));
+        values(numberType(binary_ ? BinaryType::U8 : BinaryType::F32), static_cast<size_t>(size * 4));
       } else if (key == "vectors" || key == "normals" || key == "tensors" || key == "tensors6") {
         word();
         const long long comps = key == "tensors" ? 9 : key == "tensors6" ? 6 : 3;
@@ -385,9 +341,9 @@ class Parser {
   int major_ = 0;
 };
 
-/// Space tag from the title line (2nd line); also checks the magic line.
-bool legacySpace(const std::string& path, MeshSpace& out) {
-  const std::vector<std::string> lines = splitLines(readBytes(path, 1024));
+/// Space tag from the title line (2nd line) of the file's leading bytes `head`; also checks the magic line.
+bool legacySpace(const std::string& head, const std::string& path, MeshSpace& out) {
+  const std::vector<std::string> lines = splitLines(head);
   if (lines.empty() || !startsWith(lines[0], "# vtk DataFile Version"))
     throw IoError(path, "not a VTK legacy file (first line is not '# vtk DataFile Version x.y')");
   return lines.size() > 1 && findSpaceToken(lines[1], path, out);
@@ -396,8 +352,9 @@ bool legacySpace(const std::string& path, MeshSpace& out) {
 }  // namespace
 
 TriangleMesh readVtkLegacy(const std::string& path, MeshSpace& space) {
-  legacySpace(path, space);
-  return Parser(readBytes(path), path).parse();
+  std::string bytes = readBytes(path);
+  legacySpace(bytes.substr(0, 1024), path, space);
+  return Parser(std::move(bytes), path).parse();
 }
 
 void writeVtkLegacy(const std::string& file, const std::string& path, const TriangleMesh& m, MeshSpace space) {

@@ -55,8 +55,6 @@ struct Grid {
   Eigen::Vector3d toVoxel(const Eigen::Vector3d& xyz) const {
     return (direction.transpose() * (xyz - origin)).cwiseQuotient(spacing);
   }
-  /// Rotates a vector given per voxel axis (e.g. a gradient in per-mm along i, j, k) into world RAS.
-  Eigen::Vector3d axisToWorld(const Eigen::Vector3d& v) const { return direction * v; }
   /// World-space axis-aligned bounding box of the voxel centres: {min, max}.
   std::array<Eigen::Vector3d, 2> worldBounds() const;
   /// Same dims, and affines equal within `tolMm` (per entry, mm).
