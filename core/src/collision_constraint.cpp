@@ -124,13 +124,10 @@ void CollisionConstraints::contactParticles(const Contact& c, int index[4]) cons
 
 void CollisionConstraints::apply(const Contact& c, const Eigen::Vector3d& delta, const Eigen::VectorXd& w,
                                  Points& q) const {
-  int idx[4];
-  contactParticles(c, idx);
-  const double wi[3] = {w[idx[1]], w[idx[2]], w[idx[3]]};
-  Eigen::Vector3d dp, dpi[3];
-  if (!shareContactChange(delta, c.bary, w[idx[0]], wi, dp, dpi)) return;
-  q.row(idx[0]) += dp.transpose();
-  for (int i = 0; i < 3; ++i) q.row(idx[i + 1]) += dpi[i].transpose();
+  ConstraintRow row;
+  contactRow(delta, c.bary, row);
+  contactParticles(c, row.index);
+  applyPbdRow(row, w, q);
 }
 
 int CollisionConstraints::rowCount() const {
@@ -196,7 +193,6 @@ void CollisionConstraints::correctVelocities(const Points& x, Points& v, const E
 void CollisionConstraints::appendRows(CollisionMode mode, const Points& x, const Points& v, double h,
                                       std::vector<ContactRow>& rows) const {
   const ContactParameters prm = parameters();
-  const Triangles& tri = surface_->triangles();
   for (const Contact& c : contacts_) {
     const double dref = dref_[static_cast<size_t>(c.vertex)];
     const Eigen::Vector3d pc = relative(c, x);
@@ -214,12 +210,9 @@ void CollisionConstraints::appendRows(CollisionMode mode, const Points& x, const
         break;
     }
     if (!any) continue;
-    r.index[0] = firstA_ + c.vertex;
+    contactParticles(c, r.index);
     r.weight[0] = -1.0;
-    for (int i = 0; i < 3; ++i) {
-      r.index[i + 1] = tri(c.triangle, i);
-      r.weight[i + 1] = c.bary[i];
-    }
+    for (int i = 0; i < 3; ++i) r.weight[i + 1] = c.bary[i];
     r.normal = c.normal;
     r.unilateral = response_.target != CollisionTarget::Reference;
     rows.push_back(r);
@@ -228,13 +221,7 @@ void CollisionConstraints::appendRows(CollisionMode mode, const Points& x, const
 
 double CollisionConstraints::maxPenetration(const Points& p) const {
   double worst = 0;
-  for (const Contact& c : contacts_) {
-    const Triangles& tri = surface_->triangles();
-    const Eigen::Vector3d pbar = c.bary[0] * p.row(tri(c.triangle, 0)).transpose() +
-                                 c.bary[1] * p.row(tri(c.triangle, 1)).transpose() +
-                                 c.bary[2] * p.row(tri(c.triangle, 2)).transpose();
-    worst = std::max(worst, (pbar - p.row(firstA_ + c.vertex).transpose()).dot(c.normal));
-  }
+  for (const Contact& c : contacts_) worst = std::max(worst, relative(c, p).dot(c.normal));
   return worst;
 }
 

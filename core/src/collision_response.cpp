@@ -143,16 +143,6 @@ bool contactAccelerationChange(const Eigen::Vector3d& pc, const Eigen::Vector3d&
   return true;
 }
 
-bool shareContactChange(const Eigen::Vector3d& delta, const double bary[3], double w, const double wi[3],
-                        Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]) {
-  const double denom = w + bary[0] * bary[0] * wi[0] + bary[1] * bary[1] * wi[1] + bary[2] * bary[2] * wi[2];
-  if (!(denom > 0) || !delta.allFinite()) return false;
-  const double mbar = 1.0 / denom;
-  dp = (-w * mbar) * delta;
-  for (int i = 0; i < 3; ++i) dpi[i] = (wi[i] * bary[i] * mbar) * delta;
-  return true;
-}
-
 // ------------------------------------------------------------------------------------------------ global
 
 namespace {

@@ -59,18 +59,17 @@ void CollisionSurface::update(const Points& p) {
   // A dense grid over the bounding box grown by the reach; cell size the reach or the typical triangle extent,
   // whichever is larger (and coarser if the box would need too many cells), so each query scans 27 cells.
   TriangleGrid::Layout layout;
-  boxLo_ = lo.array() - reach_;
+  layout.lo = lo.array() - reach_;
   boxHi_ = hi.array() + reach_;
-  layout.lo = boxLo_;
   layout.cell = std::max(reach_, extent / nt);
-  const Eigen::Vector3d size = boxHi_ - boxLo_;
+  const Eigen::Vector3d size = boxHi_ - layout.lo;
   while ((size / layout.cell).array().ceil().prod() > 4e6) layout.cell *= 1.5;
   layout.dims = (size / layout.cell).array().floor().cast<int>() + 1;
   grid_.build(layout, p, tri_);
 }
 
 SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance) const {
-  if (grid_.empty() || (q.array() < boxLo_.array()).any() || (q.array() > boxHi_.array()).any()) return {};
+  if (grid_.empty() || (q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) return {};
   return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_));
 }
 

@@ -30,9 +30,10 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
       static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) * static_cast<size_t>(layout.dims[2]);
   start_.assign(cells + 1, 0);
   items_.clear();
-  seen_.assign(static_cast<size_t>(triangles_), -1);
+  seen_.clear();  // closest() sizes it on first use
   query_ = 0;
-  std::vector<CellItem> boxes(static_cast<size_t>(triangles_));
+  std::vector<CellItem>& boxes = boxes_;
+  boxes.resize(static_cast<size_t>(triangles_));
   for (int t = 0; t < triangles_; ++t) {
     const Eigen::Vector3d x[3] = {p.row(tri(t, 0)), p.row(tri(t, 1)), p.row(tri(t, 2))};
     const Eigen::Vector3d lo = x[0].cwiseMin(x[1]).cwiseMin(x[2]), hi = x[0].cwiseMax(x[1]).cwiseMax(x[2]);
@@ -120,6 +121,7 @@ double TriangleGrid::cellDistance2(const Eigen::Vector3d& q, int x, int y, int z
 SurfacePoint TriangleGrid::closest(const Points& p, const Triangles& tri, const Eigen::Vector3d& q) const {
   const Eigen::Vector3i c = cellOf(q);
   const Eigen::Vector3i& dims = layout_.dims;
+  if (seen_.size() != static_cast<size_t>(triangles_)) seen_.assign(static_cast<size_t>(triangles_), -1);
   const int id = query_++;
   SurfacePoint best;
   double best2 = std::numeric_limits<double>::infinity();

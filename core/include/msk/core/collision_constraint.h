@@ -15,8 +15,9 @@ namespace msk {
 
 /// A contact's position correction as a row over (P, P1, P2, P3) (indices 0..3): Pc = Σ bi Pi − P is to change by
 /// `delta` (contactPositionChange()), so C = −delta, g = r = (−1, b0, b1, b2) (Table 4.24), γ = 1, a hard row (zero
-/// compliance under XPBD). The PBD step shares the change with the reduced mass m̄ = (w + Σ bi² wi)⁻¹: ΔP = −w m̄ δ,
-/// ΔPi = wi bi m̄ δ, conserving linear momentum (shareContactChange()).
+/// compliance under XPBD). The PBD step (pbdCorrections()) shares the change with the reduced mass
+/// m̄ = (w + Σ bi² wi)⁻¹: ΔP = −w m̄ δ, ΔPi = wi bi m̄ δ, so Σ m ΔP = 0 (linear momentum conserved) and Pc changes by δ;
+/// velocity and acceleration changes are shared the same way.
 void contactRow(const Eigen::Vector3d& delta, const double bary[3], ConstraintRow& row);
 
 /// The spring position correction (Table 4.23) of vertex P (inverse mass w) against the point Σ bi Pi of a partner

@@ -1,10 +1,10 @@
 #pragma once
 /// Collision response of a vertex–surface contact (thesis seed Table 4.23, DESIGN-NOTES §3 and §5): the pure kernels
 /// that turn one contact into the wanted change of its relative position, velocity or acceleration (position,
-/// velocity or acceleration correction; spring, reaction or reference target), the split of such a change between the
-/// vertex and the triangle's corners with the reduced mass, and the global resolution Y = H W of many contacts at once
-/// by conjugate gradient. The constraint sets that own contacts (CollisionConstraints, GlobalCollisionResolution in
-/// constraints.h) are thin owners of these kernels.
+/// velocity or acceleration correction; spring, reaction or reference target), and the global resolution Y = H W of
+/// many contacts at once by conjugate gradient. The constraint sets that own contacts (CollisionConstraints,
+/// GlobalCollisionResolution in collision_constraint.h) are thin owners of these kernels; a single contact's change is
+/// shared between the vertex and the triangle's corners as a constraint row (contactRow()).
 ///
 /// Notation: vertex P (inverse mass w) against P̄ = Σ bi Pi on a partner triangle (corners Pi, inverse masses wi),
 /// contact normal n (unit, from the partner toward P's allowed side). Relative position Pc = P̄ − P, velocity
@@ -93,13 +93,6 @@ bool contactVelocityChange(const Eigen::Vector3d& pc, const Eigen::Vector3d& vc,
 /// with Ṽc of the velocity correction; within the gap as spring. Returns false when there is nothing to correct.
 bool contactAccelerationChange(const Eigen::Vector3d& pc, const Eigen::Vector3d& vc, const Eigen::Vector3d& n,
                                const ContactParameters& c, double dref, double h, Eigen::Vector3d& delta);
-
-/// Shares a wanted change `delta` of Pc = Σ bi Pi − P (positions, velocities or accelerations alike) between P and
-/// the corners with the reduced mass m̄ = (w + Σ bi² wi)⁻¹ (DESIGN-NOTES §2): ΔP = −w m̄ δ, ΔPi = wi bi m̄ δ, so
-/// Σ m ΔP = 0 (linear momentum conserved) and Pc changes by δ. Returns false if every particle is fixed or δ is
-/// not finite.
-bool shareContactChange(const Eigen::Vector3d& delta, const double bary[3], double w, const double wi[3],
-                        Eigen::Vector3d& dp, Eigen::Vector3d dpi[3]);
 
 /// One contact linearised for the global resolution: Pc = Σ_j a_j X_j over 4 particles (a = −1 for the vertex, bi
 /// for the corners), the wanted change Y = ΔPc (or ΔVc), and its normal.

@@ -45,9 +45,9 @@ class CollisionSurface {
   int idxLo_ = 0, idxHi_ = -1;        ///< range of the surface's particle indices
   std::vector<int> vtStart_, vtTri_;  ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
   std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
-  TriangleGrid grid_;  ///< over the triangles at the positions of the last update()
-  Eigen::Vector3d boxLo_ = Eigen::Vector3d::Zero(), boxHi_ = Eigen::Vector3d::Zero();  ///< the grid's box
-  mutable std::unique_ptr<WindingNumber> winding_;  ///< of the last update(), built on demand
+  TriangleGrid grid_;                                ///< over the triangles at the positions of the last update()
+  Eigen::Vector3d boxHi_ = Eigen::Vector3d::Zero();  ///< the upper corner of the grid's box (the lower is its layout's)
+  mutable std::unique_ptr<WindingNumber> winding_;   ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;
 };
 

@@ -52,7 +52,7 @@ class SimplexInternalBatch {
   /// (ParameterError otherwise). Throws Error if `reference` is not a 2-simplex mesh.
   SimplexInternalBatch(const SimplexMesh& reference, double gamma, BatchOrder order = BatchOrder::Locality);
   /// From a set's own data: the neighbour table (#V×3), ε̃ (#V×3) and h̃ (#V) as simplexReferenceParameters()
-  /// (constraints.h) gives them, γ ∈ [0, 1] (ParameterError otherwise).
+  /// (simplex_internal_constraint.h) gives them, γ ∈ [0, 1] (ParameterError otherwise).
   SimplexInternalBatch(const NeighborTable& neighbors, const Eigen::MatrixX3d& eps, const Eigen::VectorXd& hOverR,
                        double gamma, BatchOrder order = BatchOrder::Locality);
 

@@ -46,10 +46,9 @@ class TriangleGrid {
   /// wins. Not thread-safe (it marks the triangles a query has seen).
   SurfacePoint closest(const Points& p, const Triangles& tri, const Eigen::Vector3d& q) const;
 
+ private:
   /// The cell holding `x` (clamped to the grid).
   Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
-
- private:
   size_t cellIndex(int x, int y, int z) const;
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
@@ -61,6 +60,7 @@ class TriangleGrid {
   int triangles_ = 0;
   std::vector<int> start_;         ///< cell → its range of items_ (CSR)
   std::vector<CellItem> items_;    ///< each cell's triangles, by index
+  std::vector<CellItem> boxes_;    ///< build(): each triangle's box (kept to reuse its memory on the next build)
   mutable std::vector<int> seen_;  ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
 };
