@@ -9,7 +9,6 @@ namespace msk::cli {
 
 namespace {
 
-/// Refuses text that is not a finite number.
 /// `text` broken into lines of at most `width` characters at spaces.
 std::string wrapped(const std::string& text, size_t width) {
   std::string out, line, word;
@@ -40,6 +39,7 @@ class WrappingFormatter : public CLI::Formatter {
   }
 };
 
+/// Refuses text that is not a finite number.
 const CLI::Validator kFinite(
     [](std::string& text) {
       char* end = nullptr;
@@ -88,6 +88,16 @@ CLI::Option* addVec3(CLI::App& app, const std::string& name, Eigen::Vector3d& va
       ->expected(3)
       ->check(kFinite)
       ->type_name("X,Y,Z");
+}
+
+CLI::Option* addMeshSpace(CLI::App& app, MeshSpace& space, const std::string& description) {
+  return app.add_option_function<std::string>(
+      "--mesh-space", [&space](const std::string& s) { space = parseMeshSpace(s); }, description);
+}
+
+void requireMeshOutput(const std::string& path) {
+  if (!isMeshFile(path))
+    throw UsageError("unsupported output extension for '" + path + "' (use .vtk .vtp .stl .obj .ply)");
 }
 
 }  // namespace msk::cli

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "msk/core/error.h"
+#include "msk/imaging/mesh_io.h"
 
 namespace msk::cli {
 
@@ -31,5 +32,11 @@ CLI::Option* addNumber(CLI::App& app, const std::string& name, double& value, co
 
 /// An option taking three finite numbers "x,y,z" bound to `value`.
 CLI::Option* addVec3(CLI::App& app, const std::string& name, Eigen::Vector3d& value, const std::string& description);
+
+/// The option --mesh-space ("lps" or "ras", the space mesh files are written in) bound to `space`.
+CLI::Option* addMeshSpace(CLI::App& app, MeshSpace& space, const std::string& description);
+
+/// Throws UsageError naming `path` unless its extension is one of the mesh formats written (isMeshFile()).
+void requireMeshOutput(const std::string& path);
 
 }  // namespace msk::cli

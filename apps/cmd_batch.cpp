@@ -255,7 +255,7 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   app.add_option("--jobs", b.jobs, "cases run at once, 1..64 (default 1; each case's --threads come after --)");
   app.add_flag("--redo", b.redo, "run the cases already done again");
   app.footer(
-      "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs).\n"
+      "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs). "
       "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, the checks that need no "
       "reference: largest mean image residual and volume change of an object, voxels inside two objects; Dice; "
       "message), rewritten as each case ends; OUT/metrics.csv with --reference; OUT/batch.json (the command, "
@@ -408,15 +408,30 @@ void runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vecto
   if (!usageError.empty()) throw UsageError("case " + usageError);
 }
 
+/// How the cases ended.
+struct CaseCounts {
+  long ok = 0, failed = 0, skipped = 0, doneEarlier = 0;
+};
+
+CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
+  CaseCounts n;
+  for (const Case& c : cases) {
+    n.ok += c.status == "ok";
+    n.failed += c.status == "failed";
+    n.skipped += c.status == "skipped";
+  }
+  n.doneEarlier = doneEarlier;
+  return n;
+}
+
 /// OUT/batch.json: the command, version, inputs, counts and times.
-void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argvIn, const std::vector<Case>& cases,
-                    int doneEarlier, std::time_t started, double wallSeconds) {
+void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argvIn, const CaseCounts& n,
+                    std::time_t started, double wallSeconds) {
   Json counts;
-  counts["ok"] = std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "ok"; });
-  counts["failed"] = std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; });
-  counts["done_earlier"] = doneEarlier;
-  counts["skipped_no_image"] =
-      std::count_if(cases.begin(), cases.end(), [](const Case& c) { return c.status == "skipped"; });
+  counts["ok"] = n.ok;
+  counts["failed"] = n.failed;
+  counts["done_earlier"] = n.doneEarlier;
+  counts["skipped_no_image"] = n.skipped;
   Json j;
   j["mskseg_version"] = MSK_VERSION;
   j["command"] = commandLineJson("batch", argvIn);
@@ -471,14 +486,11 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   const std::time_t started = std::time(nullptr);
   const auto t0 = std::chrono::steady_clock::now();
   runCases(b, cases, todo);
-  writeBatchJson(b, argvIn, cases, doneEarlier, started,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  const auto count = [&](const char* status) {
-    return std::count_if(cases.begin(), cases.end(), [&](const Case& c) { return c.status == status; });
-  };
-  std::cout << "batch: " << count("ok") << " ok, " << count("failed") << " failed, " << doneEarlier << " done earlier, "
-            << count("skipped") << " without " << b.imageName << " -> " << b.outAbs.string() << "/summary.csv\n";
-  return count("failed") > 0 ? 1 : 0;
+  const CaseCounts n = countCases(cases, doneEarlier);
+  writeBatchJson(b, argvIn, n, started, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  std::cout << "batch: " << n.ok << " ok, " << n.failed << " failed, " << n.doneEarlier << " done earlier, "
+            << n.skipped << " without " << b.imageName << " -> " << b.outAbs.string() << "/summary.csv\n";
+  return n.failed > 0 ? 1 : 0;
 }
 
 }  // namespace msk::cli

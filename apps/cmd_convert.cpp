@@ -14,11 +14,9 @@ int cmdConvert(const std::vector<std::string>& argv) {
   MeshSpace space = MeshSpace::LPS;
   app.add_option("in", in, "the mesh to read")->required();
   app.add_option("out", out, "the mesh to write")->required();
-  app.add_option_function<std::string>(
-      "--mesh-space", [&space](const std::string& s) { space = parseMeshSpace(s); }, "lps (default) or ras");
+  addMeshSpace(app, space, "lps (default) or ras");
   if (!parseArgs(app, argv)) return 0;
-  if (!isMeshFile(out))
-    throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
+  requireMeshOutput(out);
   MeshSpace inSpace = MeshSpace::LPS;
   TriangleMesh m = readMesh(in, &inSpace);
   writeMesh(out, m, space);

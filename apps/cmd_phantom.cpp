@@ -24,9 +24,7 @@ int cmdPhantom(const std::vector<std::string>& argv) {
   addNumber(app, "--noise", opts.noise, "Rician noise sigma, fraction of fat (default 0.03)");
   addNumber(app, "--bias", opts.bias, "multiplicative bias field amplitude (default 0.15)");
   app.add_option("--vertices", opts.meshVertices, "vertices of each truth and template mesh (default 3000)");
-  app.add_option_function<std::string>(
-      "--mesh-space", [&opts](const std::string& s) { opts.meshSpace = parseMeshSpace(s); },
-      "space of the mesh files, tagged: lps (default) or ras");
+  addMeshSpace(app, opts.meshSpace, "space of the mesh files, tagged: lps (default) or ras");
   app.add_option("--structures", structures,
                  "4: one right thigh (femur, quadriceps, hamstrings, adductors; default); 24: both thighs and both "
                  "lower legs, each a bone wrapped by five muscles");

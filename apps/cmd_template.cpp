@@ -56,16 +56,14 @@ int cmdTemplate(const std::vector<std::string>& argv) {
          "reflect the surface across the sagittal plane x = MM (RAS mm), e.g. a left-side template from a "
          "right-side label")
       ->type_name("MM");
-  app.add_option_function<std::string>(
-      "--mesh-space", [&space](const std::string& s) { space = parseMeshSpace(s); }, "lps (default) or ras; tagged");
+  addMeshSpace(app, space, "lps (default) or ras; tagged");
   if (!parseArgs(app, argv)) return 0;
   if (label < 1 || label > 2147483647L)
     throw ParameterError("--label", std::to_string(label), "must be in 1..2147483647");
   checkTemplateOptions(opts);
   if (mirrorX && !std::isfinite(*mirrorX))
     throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
-  if (!isMeshFile(out))
-    throw UsageError("unsupported output extension for '" + out + "' (use .vtk .vtp .stl .obj .ply)");
+  requireMeshOutput(out);
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);
   requireLabel(labels, label, labelsPath);

@@ -16,15 +16,7 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   addNumber(app, "--tolerance", o.evolution.toleranceMm,
             "a level stops when no vertex moves more than this in a step, mm (0: the preset's)");
   app.add_option_function<std::string>(
-      "--scheme",
-      [&o](const std::string& s) {
-        try {
-          o.evolution.scheme = parseScheme(s);
-        } catch (const ParameterError&) {
-          throw ParameterError("--scheme", s,
-                               "must be gauss-seidel, coloured-gauss-seidel, jacobi, xpbd, explicit or implicit");
-        }
-      },
+      "--scheme", [&o](const std::string& s) { o.evolution.scheme = parseScheme(s, "--scheme"); },
       "gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit (default: the preset's; another "
       "scheme comes with the substeps x iterations it needs: jacobi 1x2, xpbd 2x2, explicit 4x1, others 1x1)");
   app.add_option("--substeps", o.evolution.substeps, "substeps per step (0: the scheme's)");
@@ -94,9 +86,7 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   addNumber(app, "--muscle-target-step", o.image.muscleTargetStepEdges,
             "a muscle's image target lies at most this many local edge lengths from its vertex in a step (default "
             "1; 0: no limit; bones are not limited)");
-  app.add_option_function<std::string>(
-      "--mesh-space", [&out](const std::string& s) { out.space = parseMeshSpace(s); },
-      "space of the mesh files: lps (default) or ras; tagged either way");
+  addMeshSpace(app, out.space, "space of the mesh files: lps (default) or ras; tagged either way");
   app.add_flag_function(
       "--no-qc", [&out](std::int64_t) { out.qcPictures = false; }, "no QC pictures");
 }

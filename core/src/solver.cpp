@@ -43,12 +43,11 @@ std::vector<Scheme> allSchemes() {
           Scheme::Implicit};
 }
 
-Scheme parseScheme(const std::string& name) {
+Scheme parseScheme(const std::string& name, const std::string& option) {
   for (Scheme s : allSchemes())
     if (name == schemeName(s)) return s;
   if (name == "colored-gauss-seidel") return Scheme::ColouredGaussSeidel;
-  throw ParameterError("scheme", name,
-                       "must be gauss-seidel, coloured-gauss-seidel, jacobi, xpbd, explicit or implicit");
+  throw ParameterError(option, name, "must be gauss-seidel, coloured-gauss-seidel, jacobi, xpbd, explicit or implicit");
 }
 
 void validateSolverOptions(const SolverOptions& o) {

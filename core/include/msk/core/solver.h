@@ -41,8 +41,8 @@ enum class Scheme {
 /// Name of a scheme as parseScheme() reads it ("gauss-seidel", "coloured-gauss-seidel", "jacobi", "xpbd", "explicit",
 /// "implicit").
 std::string schemeName(Scheme scheme);
-/// Scheme from its name (also "colored-gauss-seidel"); throws ParameterError naming the choices otherwise.
-Scheme parseScheme(const std::string& name);
+/// Scheme from its name (also "colored-gauss-seidel"); otherwise throws ParameterError naming `option` and the choices.
+Scheme parseScheme(const std::string& name, const std::string& option = "scheme");
 /// Every scheme, in declaration order.
 std::vector<Scheme> allSchemes();
 
