@@ -41,7 +41,7 @@ void thighCounters(benchmark::State& state, const msk::test::ThighRun& r) {
 
 // The femur alone from the mean template, default settings, on phantom k (the argument: 1 the bundled seed, 2–6 the
 // others): Dice, ASSD and HD95 of the labels, ASSD and HD95 of the mesh, the template's mesh ASSD.
-// (FemurPhantom.BundledSampleFromTheMeanTemplate and FemurPhantom.FiveOtherSeedsIncludingObliqueAndAnisotropicGrids
+// (FemurPhantom.BundledSampleFromTheMeanTemplate and FemurPhantom/FiveOtherSeeds.IncludingObliqueAndAnisotropicGrids
 // assert Dice ≥ 0.95 and ASSD ≤ 0.6 mm.)
 void BM_FemurPhantom(benchmark::State& state) {
   const msk::test::FemurCase& c = femurCases().at(static_cast<size_t>(state.range(0) - 1));
@@ -120,7 +120,7 @@ BENCHMARK(BM_ThighSceneCollisionModes)->DenseRange(0, 1)->Unit(benchmark::kSecon
 // The thigh scene on phantoms 2–6 (the argument), default settings: Dice and mesh ASSD per object, their mean ASSD,
 // voxels inside two objects (and those handed over after the separation), the deepest vertex inside a partner, and the
 // muscles' boundary error where the septum between two muscles is missing and elsewhere.
-// (ThighSceneSeeds.FiveMoreSeedsIncludingObliqueAndAnisotropicGrids asserts Dice ≥ 0.92, mean ASSD ≤ 0.8 mm, no
+// (ThighSceneSeeds/FiveMoreSeeds.IncludingObliqueAndAnisotropicGrids asserts Dice ≥ 0.92, mean ASSD ≤ 0.8 mm, no
 // overlap and penetration ≤ 0.1 mm.)
 void BM_ThighSceneSeeds(benchmark::State& state) {
   const msk::test::PhantomCase& c = msk::test::otherPhantomCases().at(static_cast<size_t>(state.range(0) - 2));
@@ -145,7 +145,7 @@ BENCHMARK(BM_ThighSceneSeeds)->DenseRange(2, 6)->Unit(benchmark::kSecond)->Itera
 // A straight template moved toward a tube bent in the image (the argument: 0 straight and moved 6.7 mm, 1 bent 8 mm,
 // 2 bent 12 mm and moved 6.7 mm): Dice and mesh ASSD of the template, and of the runs with no medial axis, the axis
 // alone and the axis evolved first, with the stage's steps and seconds.
-// (AxisFirst.BentTubeIsReachedFromADisplacedStraightTemplate asserts the stage's gain.)
+// (AxisFirst/BentTubeIsReached.FromADisplacedStraightTemplate asserts the stage's gain.)
 void BM_AxisFirstBentTube(benchmark::State& state) {
   const msk::test::BentTubeCase& c = msk::test::bentTubeCases().at(static_cast<size_t>(state.range(0)));
   msk::test::BentTubeRuns r;

@@ -32,7 +32,7 @@ BENCHMARK(BM_AngularMomentumDrift)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond
 void BM_InternalSmoothingSweeps(benchmark::State& state) {
   const double gamma = state.range(0) / 10.0, amplitude = state.range(1) / 100.0;
   std::pair<double, double> r;
-  for (auto _ : state) r = msk::test::smoothingSweepRadii(gamma, amplitude, 2000);
+  for (auto _ : state) r = msk::test::internalSweepRadii(gamma, amplitude, 2000);
   state.counters["radius_min_mm"] = r.first;
   state.counters["radius_max_mm"] = r.second;
 }

@@ -14,7 +14,7 @@ namespace fs = std::filesystem;
 using msk::test::runCli;
 
 namespace {
-const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+const std::string kSample = msk::test::bundledSample();
 
 std::string femurScene(const std::string& path, const std::string& name) {
   msk::test::writeBytes(path, "{\"objects\": [{\"name\": \"" + name + "\", \"label\": 1, \"kind\": \"bone\", " +

@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 using msk::test::runCli;
 
 namespace {
-const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+const std::string kSample = msk::test::bundledSample();
 }
 
 // Templates of the phantom's femur and quadriceps from its own labels: the scene loads, the templates enclose the

@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 using msk::test::runCli;
 
 namespace {
-const std::string kSample = std::string(MSK_SOURCE_DIR) + "/data-samples/thigh-seed1/";
+const std::string kSample = msk::test::bundledSample();
 
 std::string femurScene(const msk::test::ScratchDir& dir, const std::string& extra = "") {
   const std::string path = dir.file("scene.json");

@@ -22,7 +22,7 @@ using msk::test::ScratchDir;
 
 namespace {
 
-const std::string kSampleLabels = MSK_SOURCE_DIR "/data-samples/thigh-seed1/labels.nii.gz";
+const std::string kSampleLabels = msk::test::bundledSample() + "labels.nii.gz";
 
 }  // namespace
 

@@ -16,11 +16,13 @@
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/solver.h"
 #include "msk/core/triangle_mesh.h"
+#include "msk/test/particles.h"
 #include "msk/test/shapes.h"
 
 namespace {
 
 using msk::Points;
+using msk::test::bitwiseEqual;
 
 /// Every instruction set of the sweeps (each falls back to the widest narrower one the processor has).
 constexpr msk::BatchLanes kAllLanes[] = {msk::BatchLanes::Sse2, msk::BatchLanes::Avx2, msk::BatchLanes::Avx512};
@@ -284,10 +286,6 @@ Problem shuffledProblem(const Problem& pr, unsigned seed) {
     out.w[pr.offset + t] = pr.w[pr.offset + v];
   }
   return out;
-}
-
-bool bitwiseEqual(const Points& a, const Points& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
 }
 
 // The locality order (breadth-first places, each colour's rows in place order, the one-thread coloured wavefront)

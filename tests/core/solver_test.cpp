@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -17,6 +16,7 @@
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/target_constraint.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/test/particles.h"
 #include "msk/test/shapes.h"
 #include "msk/test/solver_scenarios.h"
 
@@ -25,16 +25,13 @@ namespace {
 using msk::Points;
 using msk::Scheme;
 using msk::SolverOptions;
+using msk::test::bitwiseEqual;
 using msk::test::runSphereProblem;
 using msk::test::SphereProblem;
 using msk::test::sphereProblem;
 using msk::test::SphereRun;
 
 SolverOptions optionsFor(Scheme scheme) { return msk::test::sphereProblemOptions(scheme); }
-
-bool bitwiseEqual(const Points& a, const Points& b) {
-  return a.rows() == b.rows() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
-}
 
 }  // namespace
 

@@ -183,9 +183,9 @@ TEST(Filters, PercentileInterpolatesBetweenOrderStatistics) {
   EXPECT_DOUBLE_EQ(msk::percentile(img, 50), 5.0);
   EXPECT_NEAR(msk::percentile(img, 25), 2.5, 1e-12);
   EXPECT_NEAR(msk::percentile(img, 99), 9.9, 1e-12);
-  // Non-finite values are ignored.
-  img.data[3] = NAN;       // was 10
-  img.data[4] = INFINITY;  // was 6
+  // Non-finite values are ignored: with the 10 (data[3]) and the 6 (data[4]) made NaN and ∞, the largest is 9.
+  img.data[3] = NAN;
+  img.data[4] = INFINITY;
   EXPECT_DOUBLE_EQ(msk::percentile(img, 100), 9.0);
   EXPECT_NEAR(msk::percentile(std::vector<double>{4, 1, 3, 2}, 50), 2.5, 1e-12);
   EXPECT_THROW(msk::percentile(img, 101), msk::ParameterError);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 
 #include "msk/core/error.h"
@@ -29,21 +30,16 @@ msk::Grid gridAround(const Eigen::Vector3d& centre, const Eigen::Vector3i& dims,
 
 struct Overlap {
   double dice = 0;
-  size_t meshVoxels = 0, ballVoxels = 0;
+  size_t meshVoxels = 0;
 };
 
-/// Dice of the rasterised label against the analytic ball |x − c| ≤ r sampled at voxel centres.
+/// Dice of the rasterised label (1) against the analytic ball |x − c| ≤ r sampled at voxel centres, and the number
+/// of labelled voxels.
 Overlap compareWithBall(const msk::LabelMap& labels, const Eigen::Vector3d& c, double r) {
   Overlap o;
-  size_t both = 0;
-  const msk::LabelMap ball = msk::test::ballLabels(labels.grid, c, r);
-  for (size_t v = 0; v < labels.data.size(); ++v) {
-    const bool inBall = ball.data[v] != 0, inMesh = labels.data[v] != 0;
-    o.ballVoxels += inBall;
-    o.meshVoxels += inMesh;
-    both += inBall && inMesh;
-  }
-  o.dice = 2.0 * static_cast<double>(both) / static_cast<double>(o.ballVoxels + o.meshVoxels);
+  o.dice = msk::test::labelDice(labels, 1, msk::test::ballLabels(labels.grid, c, r), 1);
+  o.meshVoxels =
+      static_cast<size_t>(std::count_if(labels.data.begin(), labels.data.end(), [](int32_t v) { return v != 0; }));
   return o;
 }
 
@@ -173,7 +169,7 @@ TEST(Rasterize, OpenMeshThrows) {
 // hole) and a region enclosed only by a turned-over sheet (winding number −1) is left out (parity would fill it).
 TEST(Rasterize, FollowsTheWindingNumberWhereTheSurfaceFolds) {
   auto join = [](const msk::TriangleMesh& a, msk::TriangleMesh b, bool flipB) {
-    if (flipB) b.faces.col(1).swap(b.faces.col(2));
+    if (flipB) msk::flipFaces(b);
     return msk::test::joinedMeshes(a, b);
   };
   const msk::TriangleMesh a = msk::makeIcosphere(6.0, 3, {0, 0, 0}), b = msk::makeIcosphere(6.0, 3, {6.3, 0.2, 0.1});

@@ -120,8 +120,9 @@ TEST(Scene, MinimalFormLoads) {
   }
 }
 
-TEST(Scene, IssueExampleNamesUnknownCollisionObjects) {
-  // The short form with pair names is accepted; its collision names "a", "b" are not objects of the scene.
+// The short form of a collision pair (["a", "b"]) is parsed; names that are not objects of the scene are refused with
+// the pair's place, the unknown name and the scene's object names.
+TEST(Scene, ShortPairFormNamesUnknownCollisionObjects) {
   SceneFiles f;
   expectSceneError(f.scene(R"({"objects": [{"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk"}],
                                "collisions": [["a", "b"]]})"),
@@ -268,7 +269,7 @@ TEST(Scene, SyntaxErrorsGiveLineAndColumn) {
 }
 
 TEST(Scene, BundledPhantomSceneLoads) {
-  const msk::Scene s = msk::loadScene(MSK_SOURCE_DIR "/data-samples/thigh-seed1/scene.json");
+  const msk::Scene s = msk::loadScene(msk::test::bundledSample() + "scene.json");
   ASSERT_EQ(s.objects.size(), 4u);
   EXPECT_EQ(s.collisions.size(), 6u);
   EXPECT_EQ(s.objects[0].name, "femur");

@@ -167,9 +167,10 @@ MomentumDrift momentumDrift(bool collide) {
   return d;
 }
 
-std::pair<double, double> smoothingSweepRadii(double gamma, double amplitude, int sweeps, int* skipped) {
+std::pair<double, double> internalSweepRadii(double gamma, double amplitude, int sweeps, int* skipped,
+                                             InternalMode mode) {
   const SimplexMesh s = simplexSphere(10.0, 2);
-  SimplexInternalConstraints c(s, gamma, InternalMode::Smoothing);
+  SimplexInternalConstraints c(s, gamma, mode);
   Points p = perturbed(s.positions, amplitude, 9);
   const Eigen::VectorXd w = Eigen::VectorXd::Ones(s.vertexCount());
   for (int i = 0; i < sweeps; ++i) c.project(p, w);

@@ -8,26 +8,11 @@
 
 namespace msk::test {
 
-ImageF partialVolumeImage(const Grid& grid, const std::function<bool(const Eigen::Vector3d&)>& isInside, float inside,
-                          float outside) {
-  ImageF img(grid, outside);
-  const int ss = 4;
-  for (int k = 0; k < grid.dims[2]; ++k)
-    for (int j = 0; j < grid.dims[1]; ++j)
-      for (int i = 0; i < grid.dims[0]; ++i) {
-        int in = 0;
-        for (int a = 0; a < ss; ++a)
-          for (int b = 0; b < ss; ++b)
-            for (int c = 0; c < ss; ++c)
-              in += isInside(grid.toWorld(
-                  Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5)));
-        const double f = static_cast<double>(in) / (ss * ss * ss);
-        img.at(i, j, k) = static_cast<float>(f * inside + (1 - f) * outside);
-      }
-  return img;
-}
+namespace {
 
-ImageF sampledImage(const Grid& grid, const std::function<double(const Eigen::Vector3d&)>& intensity) {
+/// An image on `grid`: each voxel `value(m)`, m the mean of `sample` over the voxel's 4³ sub-samples (world points).
+template <class Sample, class Value>
+ImageF subsampledImage(const Grid& grid, const Sample& sample, const Value& value) {
   ImageF img(grid, 0.f);
   const int ss = 4;
   for (int k = 0; k < grid.dims[2]; ++k)
@@ -37,11 +22,25 @@ ImageF sampledImage(const Grid& grid, const std::function<double(const Eigen::Ve
         for (int a = 0; a < ss; ++a)
           for (int b = 0; b < ss; ++b)
             for (int c = 0; c < ss; ++c)
-              sum += intensity(grid.toWorld(
+              sum += sample(grid.toWorld(
                   Eigen::Vector3d(i + (a + 0.5) / ss - 0.5, j + (b + 0.5) / ss - 0.5, k + (c + 0.5) / ss - 0.5)));
-        img.at(i, j, k) = static_cast<float>(sum / (ss * ss * ss));
+        img.at(i, j, k) = value(sum / (ss * ss * ss));
       }
   return img;
+}
+
+}  // namespace
+
+ImageF partialVolumeImage(const Grid& grid, const std::function<bool(const Eigen::Vector3d&)>& isInside, float inside,
+                          float outside) {
+  // The mean of a 0/1 indicator over 64 samples is a count over 64: exact in double.
+  return subsampledImage(
+      grid, [&](const Eigen::Vector3d& x) { return isInside(x) ? 1.0 : 0.0; },
+      [&](double f) { return static_cast<float>(f * inside + (1 - f) * outside); });
+}
+
+ImageF sampledImage(const Grid& grid, const std::function<double(const Eigen::Vector3d&)>& intensity) {
+  return subsampledImage(grid, intensity, [](double mean) { return static_cast<float>(mean); });
 }
 
 ImageF ballImage(const Grid& grid, const Eigen::Vector3d& centre, double radiusMm, float inside, float outside) {
@@ -122,26 +121,15 @@ void voxelBox(const Grid& grid, const std::vector<TriangleMesh>& meshes, double 
   }
 }
 
-namespace {
-template <typename T>
-Volume<T> cropAny(const Volume<T>& v, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
-  Grid g = v.grid;
+ImageF cropVolume(const ImageF& image, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
+  Grid g = image.grid;
   g.dims = hi - lo + Eigen::Vector3i::Ones();
-  g.origin = v.grid.toWorld(lo.cast<double>());
-  Volume<T> out(g);
+  g.origin = image.grid.toWorld(lo.cast<double>());
+  ImageF out(g);
   for (int k = 0; k < g.dims[2]; ++k)
     for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i) out.at(i, j, k) = v.at(i + lo[0], j + lo[1], k + lo[2]);
+      for (int i = 0; i < g.dims[0]; ++i) out.at(i, j, k) = image.at(i + lo[0], j + lo[1], k + lo[2]);
   return out;
-}
-}  // namespace
-
-ImageF cropVolume(const ImageF& image, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
-  return cropAny(image, lo, hi);
-}
-
-LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi) {
-  return cropAny(labels, lo, hi);
 }
 
 }  // namespace msk::test

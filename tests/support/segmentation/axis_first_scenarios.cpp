@@ -3,8 +3,7 @@
 #include <cmath>
 
 #include "msk/core/error.h"
-#include "msk/imaging/nifti_io.h"
-#include "msk/test/files.h"
+#include "msk/test/phantom_scenarios.h"
 #include "msk/test/volumes.h"
 
 namespace msk::test {
@@ -81,13 +80,12 @@ BentTubeRuns runBentTube(const BentTubeCase& c) {
   return runs;
 }
 
-DisplacedMuscleRuns runDisplacedThighMuscle(const std::string& name) {
-  const std::string dir = bundledSample();
-  const ImageF img = readNifti<float>(dir + "image.nii.gz");
-  const Scene scene = loadScene(dir + "scene.json");
-  const LabelMap truth = readNifti<int32_t>(dir + "labels.nii.gz");
+DisplacedMuscleRuns runDisplacedThighMuscle(const std::string& name, FullRuns full) {
+  const BundledThigh thigh = loadBundledThigh();
+  const ImageF& img = thigh.image;
+  const LabelMap& truth = thigh.labels;
   Scene s;
-  for (const SceneObject& o : scene.objects)
+  for (const SceneObject& o : thigh.scene.objects)
     if (o.name == name) s.objects.push_back(o);
   if (s.objects.size() != 1) throw Error("bundled scene: no single object named " + name);
   SceneObject& o = s.objects[0];
@@ -108,8 +106,10 @@ DisplacedMuscleRuns runDisplacedThighMuscle(const std::string& name) {
   DisplacedMuscleRuns r;
   r.templ = metrics(false, false, still);
   r.stage = metrics(true, true, still);
-  r.plain = metrics(false, false, {});
-  r.axis = metrics(true, false, {});
+  if (full == FullRuns::All) {
+    r.plain = metrics(false, false, {});
+    r.axis = metrics(true, false, {});
+  }
   r.first = metrics(true, true, {}, &r.stageSteps);
   return r;
 }

@@ -72,13 +72,14 @@ Scene femurScene(const TriangleMesh& templ) {
   return scene;
 }
 
-FemurScore segmentFemur(const FemurCase& c, const SegmentOptions& opts, const TriangleMesh* templ) {
+FemurScore segmentFemur(const FemurCase& c, const SegmentOptions& opts, const TriangleMesh* templ,
+                        TemplateScores scores) {
   const TriangleMesh& t = templ ? *templ : c.templ;
   const SegmentationResult res = segmentScene(c.image, femurScene(t), opts);
   FemurScore s;
   s.labels = labelMetrics(res.labels, 1, c.labels, 1);
   s.mesh = meshMetrics(res.objects[0].mesh, c.truth);
-  s.start = meshMetrics(t, c.truth);
+  if (scores == TemplateScores::Measure) s.start = meshMetrics(t, c.truth);
   s.seconds = res.seconds;
   return s;
 }
@@ -139,7 +140,7 @@ void septaErrors(const Phantom& p, const TriangleMesh& truth, const TriangleMesh
 
 }  // namespace
 
-ThighSceneScore segmentPhantomThigh(const PhantomCase& c) {
+ThighSceneScore segmentPhantomThigh(const PhantomCase& c, TemplateScores scores) {
   const Phantom p = makeCasePhantom(c);
   const Scene scene = phantomScene(p);
   ThighSceneScore sc;
@@ -153,7 +154,8 @@ ThighSceneScore segmentPhantomThigh(const PhantomCase& c) {
     o.name = scene.objects[i].name;
     o.dice = labelMetrics(res.labels, label, p.labels, label).dice;
     o.meshAssd = meshMetrics(res.objects[i].mesh, p.objects[i].truth).assd;
-    o.templateAssd = meshMetrics(scene.objects[i].templ, p.objects[i].truth).assd;
+    if (scores == TemplateScores::Measure)
+      o.templateAssd = meshMetrics(scene.objects[i].templ, p.objects[i].truth).assd;
     if (scene.objects[i].kind == ObjectKind::Muscle)
       septaErrors(p, p.objects[i].truth, res.objects[i].mesh, sc.septaMissingMm, sc.septaMissingVertices,
                   sc.septaOtherMm, sc.septaOtherVertices);

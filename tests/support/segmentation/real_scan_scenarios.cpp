@@ -9,7 +9,6 @@
 #include "msk/imaging/rasterize.h"
 #include "msk/segmentation/template_builder.h"
 #include "msk/test/shapes.h"
-#include "msk/test/templates.h"
 #include "msk/test/volumes.h"
 
 namespace msk::test {
@@ -20,6 +19,12 @@ const Eigen::Vector3d kDirections[] = {Eigen::Vector3d(1, 1, 1).normalized(), Ei
                                        Eigen::Vector3d(1, -1, -1).normalized(),
                                        Eigen::Vector3d(-1, -1, 1).normalized()};
 constexpr double kScales[] = {1.03, 0.97, 1.03, 0.97};
+
+/// Template of the other side: the smooth template of `fromLabel`, mirrored across the sagittal plane x = `midX`
+/// (RAS mm).
+TriangleMesh mirroredTemplate(const LabelMap& labels, int fromLabel, double midX, const TemplateOptions& opts = {}) {
+  return mirrorMesh(templateFromLabels(labels, fromLabel, opts), Eigen::Vector3d(midX, 0, 0), Eigen::Vector3d::UnitX());
+}
 
 /// The affine map from a template made by displacedScaled(mirrored, offset, scale) back to the contralateral
 /// structure it was mirrored from (the scene's profile source): undo the displacement and scale about the centroid,

@@ -41,7 +41,7 @@ Eigen::Matrix4d movedScaledMatrix(const TriangleMesh& mesh, double angleDeg, con
 }
 
 VolumeRun runVolumeModel(const ImageF& image, SceneObject object, const LabelMap& labels, int label, double truthMm3,
-                         const SegmentOptions& opts) {
+                         const SegmentOptions& opts, RestQuality rest) {
   object.model.volumetric = true;
   Scene scene;
   scene.objects.push_back(object);
@@ -65,24 +65,26 @@ VolumeRun runVolumeModel(const ImageF& image, SceneObject object, const LabelMap
     r.boundaryOffSurfaceMm = (tb.vertices - o.mesh.vertices).rowwise().norm().maxCoeff();
   else
     r.boundaryOffSurfaceMm = -1;
-  // The template's tets as the segmenter makes them (same options, same canonical order): their quality, and how
-  // flat the tets that inverted were at rest.
-  TetOptions to;
-  const double edge = meanEdgeLength(object.templ);
-  to.facetSizeMm = edge;
-  to.cellSizeMm = 1.5 * edge;
-  to.facetDistanceMm = 0.1 * edge;
-  to.odt = to.perturb = to.exude = true;
-  to.interiorNodes = true;
-  const TetMesh rest = tetrahedralize(object.templ, to);
-  if (rest.tetCount() == r.tets) {  // (exudation may break a tie differently: then no rest figures)
-    const Eigen::VectorXd angle = tetMinDihedralAngles(rest);
-    r.minDihedralDeg = angle.minCoeff();
-    r.slivers = static_cast<int>((angle.array() < 5.0).count());
-    for (int t = 0; t < r.tets; ++t) {
-      if (vols[t] > 0) continue;
-      r.invertedSlivers += angle[t] < 5.0 ? 1 : 0;
-      r.invertedRestDeg = std::max(r.invertedRestDeg, angle[t]);
+  if (rest == RestQuality::Measure) {
+    // The template's tets as the segmenter makes them (same options, same canonical order): their quality, and how
+    // flat the tets that inverted were at rest.
+    TetOptions to;
+    const double edge = meanEdgeLength(object.templ);
+    to.facetSizeMm = edge;
+    to.cellSizeMm = 1.5 * edge;
+    to.facetDistanceMm = 0.1 * edge;
+    to.odt = to.perturb = to.exude = true;
+    to.interiorNodes = true;
+    const TetMesh restTets = tetrahedralize(object.templ, to);
+    if (restTets.tetCount() == r.tets) {  // (exudation may break a tie differently: then no rest figures)
+      const Eigen::VectorXd angle = tetMinDihedralAngles(restTets);
+      r.minDihedralDeg = angle.minCoeff();
+      r.slivers = static_cast<int>((angle.array() < 5.0).count());
+      for (int t = 0; t < r.tets; ++t) {
+        if (vols[t] > 0) continue;
+        r.invertedSlivers += angle[t] < 5.0 ? 1 : 0;
+        r.invertedRestDeg = std::max(r.invertedRestDeg, angle[t]);
+      }
     }
   }
   r.templateMm3 = o.volumeModelTemplateMm3;
@@ -127,12 +129,12 @@ VolumeCase realAutochthonCase(const std::string& sharedData) {
   return c;
 }
 
-VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale) {
+VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale, RestQuality rest) {
   const Eigen::Vector3d axis(1, 2, 3), offset(2.0, -2.5, 1.5);
   SceneObject o = c.object;
   o.templ = movedScaled(c.truth, angleDeg, axis, scale, offset);
   if (c.real) o.profileSource = movedScaledMatrix(c.truth, angleDeg, axis, scale, offset).inverse();
-  return runVolumeModel(c.image, o, c.labels, o.label, enclosedVolume(c.truth));
+  return runVolumeModel(c.image, o, c.labels, o.label, enclosedVolume(c.truth), SegmentOptions{}, rest);
 }
 
 }  // namespace msk::test

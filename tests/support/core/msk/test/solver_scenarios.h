@@ -75,10 +75,11 @@ struct MomentumDrift {
 };
 MomentumDrift momentumDrift(bool collide);
 
-/// Smallest and largest distance from the origin (mm) after `sweeps` projections of the internal set alone in the
-/// smoothing mode (stiffness `gamma`) on a sphere of radius 10 mm perturbed by ±amplitude; {∞, ∞} if not finite.
-/// `skipped`, if given, receives the set's skipped rows of the last sweep.
-std::pair<double, double> smoothingSweepRadii(double gamma, double amplitude, int sweeps, int* skipped = nullptr);
+/// Smallest and largest distance from the origin (mm) after `sweeps` projections of the internal set alone in `mode`
+/// (stiffness `gamma`) on a sphere of radius 10 mm perturbed by ±amplitude; {∞, ∞} if not finite. The rest shape is
+/// the sphere itself. `skipped`, if given, receives the set's skipped rows of the last sweep.
+std::pair<double, double> internalSweepRadii(double gamma, double amplitude, int sweeps, int* skipped = nullptr,
+                                             InternalMode mode = InternalMode::Smoothing);
 
 /// The same through the rows: `steps` steps of `scheme` with the smoothing set alone.
 std::pair<double, double> smoothingSolverRadii(Scheme scheme, double gamma, double amplitude, int steps);

@@ -48,7 +48,5 @@ void voxelBox(const Grid& grid, const std::vector<TriangleMesh>& meshes, double 
 
 /// The sub-volume of voxels [lo, hi] (inclusive), on a grid with the same spacing and direction (world positions kept).
 ImageF cropVolume(const ImageF& image, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi);
-/// Same for a label map.
-LabelMap cropVolume(const LabelMap& labels, const Eigen::Vector3i& lo, const Eigen::Vector3i& hi);
 
 }  // namespace msk::test

@@ -64,6 +64,9 @@ struct DisplacedMuscleRuns {
   SegmentationMetrics templ, stage, plain, axis, first;
   int stageSteps = 0;
 };
-DisplacedMuscleRuns runDisplacedThighMuscle(const std::string& name);
+/// Which full runs runDisplacedThighMuscle() makes: all three, or only the one with the axis first (`plain` and `axis`
+/// left empty).
+enum class FullRuns { All, AxisFirstOnly };
+DisplacedMuscleRuns runDisplacedThighMuscle(const std::string& name, FullRuns full = FullRuns::All);
 
 }  // namespace msk::test

@@ -45,16 +45,21 @@ FemurCase phantomFemur(const PhantomCase& c);
 /// A scene of the femur alone (label 1, bone) from `templ`.
 Scene femurScene(const TriangleMesh& templ);
 
+/// Whether a scenario also scores the templates against the truth surfaces (the benchmarks' starting figures), or
+/// leaves those scores at 0.
+enum class TemplateScores { Measure, Skip };
+
 /// A femur run scored against the truth.
 struct FemurScore {
   SegmentationMetrics labels;  ///< result labels against the exact labels
   SegmentationMetrics mesh;    ///< result surface against the truth surface
-  SegmentationMetrics start;   ///< the template against the truth surface
+  SegmentationMetrics start;   ///< the template against the truth surface (TemplateScores::Measure)
   double seconds = 0;          ///< the segmentation
 };
 
 /// Segments the femur from `templ` (the case's template if empty) and scores it.
-FemurScore segmentFemur(const FemurCase& c, const SegmentOptions& opts = {}, const TriangleMesh* templ = nullptr);
+FemurScore segmentFemur(const FemurCase& c, const SegmentOptions& opts = {}, const TriangleMesh* templ = nullptr,
+                        TemplateScores scores = TemplateScores::Measure);
 
 /// The bundled thigh scene: image, exact labels (1 femur, 2 quadriceps, 3 hamstrings, 4 adductors) and scene.json.
 struct BundledThigh {
@@ -88,7 +93,7 @@ struct ThighObjectScore {
   std::string name;
   double dice = 0;          ///< labels against the exact labels
   double meshAssd = 0;      ///< result surface against the truth surface, mm
-  double templateAssd = 0;  ///< the template against the truth surface, mm
+  double templateAssd = 0;  ///< the template against the truth surface, mm (TemplateScores::Measure)
 };
 
 /// The thigh scene of a phantom case (its touching pairs as collision pairs), default settings, scored.
@@ -105,6 +110,6 @@ struct ThighSceneScore {
   int septaMissingVertices = 0, septaOtherVertices = 0;
   double seconds = 0;
 };
-ThighSceneScore segmentPhantomThigh(const PhantomCase& c);
+ThighSceneScore segmentPhantomThigh(const PhantomCase& c, TemplateScores scores = TemplateScores::Measure);
 
 }  // namespace msk::test

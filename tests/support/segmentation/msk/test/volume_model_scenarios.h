@@ -22,14 +22,18 @@ TriangleMesh movedScaled(const TriangleMesh& mesh, double angleDeg, const Eigen:
 Eigen::Matrix4d movedScaledMatrix(const TriangleMesh& mesh, double angleDeg, const Eigen::Vector3d& axis, double scale,
                                   const Eigen::Vector3d& offset);
 
+/// Whether a volume-model run also tetrahedralises the template again for the quality of its tets at rest (the
+/// benchmark's figures minDihedralDeg, slivers, invertedSlivers, invertedRestDeg), or leaves those at 0.
+enum class RestQuality { Measure, Skip };
+
 /// What one volume-model run measured.
 struct VolumeRun {
   int tets = 0, inverted = 0, invertedAtSurface = 0;
   double boundaryOffSurfaceMm = 0;  ///< the furthest a tet boundary node lies from its surface vertex (−1: not matched)
-  double minDihedralDeg = 0;        ///< of the tetrahedralised template
-  int slivers = 0;                  ///< template tets with a dihedral angle under 5°
-  int invertedSlivers = 0;          ///< inverted tets that were slivers at rest
-  double invertedRestDeg = 0;       ///< the largest rest min-dihedral angle of an inverted tet
+  double minDihedralDeg = 0;        ///< of the tetrahedralised template (RestQuality::Measure)
+  int slivers = 0;                  ///< template tets with a dihedral angle under 5° (RestQuality::Measure)
+  int invertedSlivers = 0;          ///< inverted tets that were slivers at rest (RestQuality::Measure)
+  double invertedRestDeg = 0;       ///< the largest rest min-dihedral angle of an inverted tet (RestQuality::Measure)
   double templateMm3 = 0, modelMm3 = 0, truthMm3 = 0, surfaceMm3 = 0;
   std::string decision;  ///< the volume constraint's decision (ObjectResult::volumeDecision)
   double dice = 0, templateDice = 0, seconds = 0;
@@ -44,7 +48,7 @@ struct VolumeRun {
 /// Segments `object` (made volumetric) alone in `image` and measures the volume model against label `label` of
 /// `labels`, whose object has the volume `truthMm3`.
 VolumeRun runVolumeModel(const ImageF& image, SceneObject object, const LabelMap& labels, int label, double truthMm3,
-                         const SegmentOptions& opts = {});
+                         const SegmentOptions& opts = {}, RestQuality rest = RestQuality::Measure);
 
 /// A muscle to run as a volume model: its image, labels, scene object (template to be set) and true surface.
 struct VolumeCase {
@@ -65,6 +69,6 @@ VolumeCase realAutochthonCase(const std::string& sharedData);
 
 /// Runs the case's muscle with its true surface moved by (2, −2.5, 1.5) mm and rotated by `angleDeg` about (1, 2, 3),
 /// scaled by `scale` (a real case learns its profiles where the template came from: the true place).
-VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale);
+VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale, RestQuality rest = RestQuality::Measure);
 
 }  // namespace msk::test
