@@ -105,18 +105,15 @@ BENCHMARK(BM_VolumeModelRealAutochthon)
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 
-// What the mesh optimisers cost: a phantom muscle's template tetrahedralised at the segmenter's sizes (facets of its
-// mean edge, cells 1.5 times that) plain (argument 0), with ODT, perturbation and exudation (1), and also with interior
-// nodes, bridges split (2) or every boundary-only tet split (3): tets, the smallest dihedral angle, tets under 5° and
-// tets with all four nodes on the surface; the time is the tetrahedralisation's.
+// What the mesh optimisers cost: a phantom muscle's template tetrahedralised at the segmenter's sizes
+// (volumeModelTetOptions(): facets of its mean edge, cells 1.5 times that) plain (argument 0), with ODT, perturbation
+// and exudation (1), and also with interior nodes, bridges split (2) or every boundary-only tet split (3): tets, the
+// smallest dihedral angle, tets under 5° and tets with all four nodes on the surface; the time is the
+// tetrahedralisation's.
 void BM_Tetrahedralisation(benchmark::State& state, const char* muscle) {
   const msk::TriangleMesh t = msk::readMesh(msk::test::bundledSample() + "template_" + muscle + ".vtk");
   const int variant = static_cast<int>(state.range(0));
-  const double edge = msk::meanEdgeLength(t);
-  msk::TetOptions to;
-  to.facetSizeMm = edge;
-  to.cellSizeMm = 1.5 * edge;
-  to.facetDistanceMm = 0.1 * edge;
+  msk::TetOptions to = msk::volumeModelTetOptions(t);
   to.odt = to.perturb = to.exude = variant > 0;
   to.interiorNodes = variant >= 2;
   to.interiorSplit = variant == 2 ? msk::BoundarySplit::Bridges : msk::BoundarySplit::Tets;

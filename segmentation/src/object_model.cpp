@@ -77,17 +77,9 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   st.lv[0].triangles = templ;
   TetMesh tets;
   if (obj.model.volumetric) {
-    // Tetrahedra about as large as the template's triangles; the finest surface becomes the tet mesh's boundary.
-    const double edge = meanEdgeLength(templ);
-    TetOptions to;
-    to.facetSizeMm = edge;
-    to.cellSizeMm = 1.5 * edge;
-    to.facetDistanceMm = 0.1 * edge;
-    // ODT smoothing, sliver perturbation and exudation: fewer badly shaped tets to fold at the surface.
-    to.odt = to.perturb = to.exude = true;
-    // Every tet gets a node off the surface, so finishObject() can untangle any tet the surface folds.
-    to.interiorNodes = true;
-    tets = tetrahedralize(templ, to);
+    // Tetrahedra about as large as the template's triangles, each with a node off the surface so that finishObject()
+    // can untangle any tet the surface folds; the finest surface becomes the tet mesh's boundary.
+    tets = tetrahedralize(templ, volumeModelTetOptions(templ));
     st.volume = volumeSimplexFromTets(tets);
     st.lv[0].triangles = tetBoundary(tets);
   }

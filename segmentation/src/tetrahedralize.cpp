@@ -172,4 +172,15 @@ TetMesh tetrahedralize(const TriangleMesh& surface, const TetOptions& opt) {
   return out;
 }
 
+TetOptions volumeModelTetOptions(const TriangleMesh& templ) {
+  const double edge = meanEdgeLength(templ);
+  TetOptions to;
+  to.facetSizeMm = edge;
+  to.cellSizeMm = 1.5 * edge;
+  to.facetDistanceMm = 0.1 * edge;
+  to.odt = to.perturb = to.exude = true;
+  to.interiorNodes = true;
+  return to;
+}
+
 }  // namespace msk

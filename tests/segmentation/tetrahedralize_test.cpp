@@ -145,12 +145,8 @@ std::set<std::array<int, 3>> orientedFaceSet(const msk::Triangles& f) {
 TEST(Tetrahedralize, InteriorNodesInEveryTet) {
   msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 3);
   sphere.vertices.col(2) *= 0.3;
-  msk::TetOptions options;
-  const double edge = msk::meanEdgeLength(sphere);
-  options.facetSizeMm = edge;
-  options.cellSizeMm = 1.5 * edge;
-  options.facetDistanceMm = 0.1 * edge;
-  options.odt = options.perturb = options.exude = true;
+  msk::TetOptions options = msk::volumeModelTetOptions(sphere);
+  options.interiorNodes = false;
   const msk::TetMesh plain = msk::tetrahedralize(sphere, options);
   options.interiorNodes = true;
   const msk::TetMesh a = msk::tetrahedralize(sphere, options), b = msk::tetrahedralize(sphere, options);

@@ -47,4 +47,10 @@ struct TetOptions {
 /// negative size or an out-of-range angle or ratio.
 TetMesh tetrahedralize(const TriangleMesh& closedSurface, const TetOptions& options = {});
 
+/// The options the segmenter tetrahedralises a volume model's template with: tets about as large as the template's
+/// triangles (facet size its mean edge length, cell size 1.5 times that, facet distance a tenth of it), ODT smoothing,
+/// sliver perturbation and exudation (fewer badly shaped tets to fold at the surface), and interior nodes (every tet
+/// has a node off the surface, so a tet the deformed surface folds can be untangled).
+TetOptions volumeModelTetOptions(const TriangleMesh& templ);
+
 }  // namespace msk
