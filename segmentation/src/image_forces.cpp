@@ -9,6 +9,19 @@
 #include "msk/imaging/filters.h"
 
 namespace msk {
+
+const char* polarityName(Polarity p) {
+  switch (p) {
+    case Polarity::Auto:
+      return "auto";
+    case Polarity::DarkInside:
+      return "dark-inside";
+    case Polarity::BrightInside:
+      return "bright-inside";
+  }
+  return "?";
+}
+
 namespace {
 
 /// A gradient lobe ends at a dip once the derivative climbs again by this fraction of the peak.

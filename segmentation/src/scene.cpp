@@ -9,6 +9,7 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
+#include "msk/segmentation/segment_options.h"
 #include "msk/segmentation/surface_proximity.h"
 
 namespace fs = std::filesystem;
@@ -25,6 +26,7 @@ const std::vector<std::string> kModelKeys = {"shape_memory", "internal_stiffness
                                              "volumetric",   "volume_stiffness",   "refine",          "remesh"};
 const std::vector<std::string> kPairParameterKeys = {"gap_mm", "proximity_mm", "friction",
                                                      "mode",   "target",       "resolution"};
+// The scene's names of the TargetModes, in the enum's order (parsed and written by index).
 const std::vector<std::string> kForces = {"gradient", "profile"};
 constexpr double kAutoWithinMm = 2.0;  // "collisions": "auto"
 
@@ -160,7 +162,7 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   if (imageForce >= 0 && force >= 0)
     check.fail(where, "both \"force\" and model \"image_force\" are given (they are synonyms: keep one)");
   if (const int f = imageForce >= 0 ? imageForce : force; f >= 0) {
-    m.imageForce = f == 0 ? TargetMode::Gradient : TargetMode::Profile;
+    m.imageForce = static_cast<TargetMode>(f);
     obj.hasForce = true;
     obj.force = m.imageForce;
   }
@@ -481,10 +483,6 @@ Scene loadScene(const std::string& path) { return parseScene(readJsonFile(path),
 
 namespace {
 
-const char* polarityKey(Polarity p) {
-  return p == Polarity::DarkInside ? "dark-inside" : p == Polarity::BrightInside ? "bright-inside" : "auto";
-}
-
 /// The "model" keys of `m` that differ from the defaults of its kind (an empty object if none).
 Json modelJson(const ObjectModel& m, ObjectKind kind) {
   const ObjectModel d = defaultModel(kind);
@@ -496,10 +494,7 @@ Json modelJson(const ObjectModel& m, ObjectKind kind) {
   if (!m.globalPrior) {
     j["global_prior"] = false;
   } else if (m.priorTransform) {
-    const PriorTransform t = *m.priorTransform;
-    j["global_prior"] = t == PriorTransform::Rigid        ? "rigid"
-                        : t == PriorTransform::Similarity ? "similarity"
-                                                          : "affine";
+    j["global_prior"] = priorTransformName(*m.priorTransform);
   }
   if (m.medialAxis != d.medialAxis) j["medial_axis"] = m.medialAxis;
   if (m.radialStiffness >= 0) j["radial_stiffness"] = m.radialStiffness;
@@ -559,8 +554,8 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
     j["label"] = o.label;
     j["kind"] = objectKindName(o.kind);
     j["template"] = pathFrom(folder, o.templatePath);
-    if (o.hasPolarity) j["polarity"] = polarityKey(o.polarity);
-    if (o.hasForce) j["force"] = o.force == TargetMode::Profile ? "profile" : "gradient";
+    if (o.hasPolarity) j["polarity"] = polarityName(o.polarity);
+    if (o.hasForce) j["force"] = kForces[static_cast<size_t>(o.force)];
     if (const Json model = modelJson(o.model, o.kind); !model.empty()) j["model"] = model;
     if (o.profileSource) j["profiles_from"] = profileSourceJson(*o.profileSource);
     objects.push_back(j);

@@ -10,18 +10,6 @@
 
 namespace msk {
 
-const char* polarityName(Polarity p) {
-  switch (p) {
-    case Polarity::Auto:
-      return "auto";
-    case Polarity::DarkInside:
-      return "dark-inside";
-    case Polarity::BrightInside:
-      return "bright-inside";
-  }
-  return "?";
-}
-
 namespace {
 
 using namespace detail;

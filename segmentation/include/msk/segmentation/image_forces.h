@@ -31,6 +31,9 @@ enum class Polarity {
   BrightInside  ///< intensity falls going outward (CT bone against soft tissue, T1 marrow)
 };
 
+/// Name of a polarity ("auto", "dark-inside", "bright-inside"), as scenes and reports write it.
+const char* polarityName(Polarity p);
+
 /// What the search looks for.
 enum class TargetMode {
   Gradient,  ///< strongest directional derivative of the right polarity

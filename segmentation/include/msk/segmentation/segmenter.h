@@ -17,9 +17,6 @@
 
 namespace msk {
 
-/// Name of a polarity ("auto", "dark-inside", "bright-inside").
-const char* polarityName(Polarity p);
-
 /// The collision response one pair used (names of its objects, mode, target, resolution).
 struct PairResponse {
   std::string a, b;            ///< object names
