@@ -21,7 +21,8 @@ namespace {
 
 /// One object of --objects: NAME:LABEL[:FROM][:KIND].
 struct ObjectSpec {
-  std::string name, kind = "generic";
+  std::string name;
+  ObjectKind kind = ObjectKind::Generic;
   long label = 0, from = 0;
 };
 
@@ -49,9 +50,9 @@ std::vector<ObjectSpec> parseObjects(const std::string& text) {
     o.label = labelNumber(parts[1], item);
     o.from = o.label;
     for (size_t p = 2; p < parts.size(); ++p) {
-      const bool isKind = parts[p] == "bone" || parts[p] == "muscle" || parts[p] == "generic";
-      if (isKind && p + 1 == parts.size()) {
-        o.kind = parts[p];
+      const std::optional<ObjectKind> kind = parseObjectKind(parts[p]);
+      if (kind && p + 1 == parts.size()) {
+        o.kind = *kind;
       } else if (p == 2) {
         o.from = labelNumber(parts[p], item);
       } else {
@@ -112,7 +113,7 @@ SceneObject sceneObject(const ObjectSpec& o, const LabelMap& labels, const Scene
   SceneObject so;
   so.name = o.name;
   so.label = static_cast<int>(o.label);
-  so.kind = o.kind == "bone" ? ObjectKind::Bone : o.kind == "muscle" ? ObjectKind::Muscle : ObjectKind::Generic;
+  so.kind = o.kind;
   so.model = defaultModel(so.kind);
   so.templatePath = templatePath;
   writeMesh(so.templatePath, mesh, MeshSpace::LPS);

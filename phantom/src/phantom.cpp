@@ -145,7 +145,7 @@ Scene phantomScene(const Phantom& phantom, const std::string& folder) {
     SceneObject so;
     so.name = o.name;
     so.label = o.label;
-    so.kind = o.kind == "bone" ? ObjectKind::Bone : o.kind == "muscle" ? ObjectKind::Muscle : ObjectKind::Generic;
+    so.kind = parseObjectKind(o.kind).value_or(ObjectKind::Generic);
     so.model = defaultModel(so.kind);
     so.templatePath = (std::filesystem::path(folder) / ("template_" + o.name + ".vtk")).string();
     so.templ = o.templ;

@@ -447,6 +447,12 @@ const char* objectKindName(ObjectKind k) {
   return "?";
 }
 
+std::optional<ObjectKind> parseObjectKind(const std::string& name) {
+  for (ObjectKind k : {ObjectKind::Bone, ObjectKind::Muscle, ObjectKind::Generic})
+    if (name == objectKindName(k)) return k;
+  return std::nullopt;
+}
+
 Scene parseScene(const Json& json, const std::string& path) {
   const Checker check(path);
   if (!json.is_object()) check.fail("", std::string("a scene must be a JSON object, found ") + json.type_name());

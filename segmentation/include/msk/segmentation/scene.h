@@ -20,6 +20,8 @@ enum class ObjectKind { Bone, Muscle, Generic };
 
 /// "bone" | "muscle" | "generic".
 const char* objectKindName(ObjectKind k);
+/// The kind objectKindName() names `name`; nullopt for any other string.
+std::optional<ObjectKind> parseObjectKind(const std::string& name);
 
 /// The constraints an object gets (scene key "model" of an object). Fields marked "< 0" or "unset" take the run's
 /// value (SegmentOptions or the module's default), so a scene only states what it changes.
