@@ -1,6 +1,7 @@
 // mskseg segment: the scene's templates evolved into the image; meshes, label map, report and QC pictures.
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include "commands.h"
@@ -8,6 +9,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
+#include "msk/segmentation/atlas.h"
 #include "msk/segmentation/qc_pictures.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_report.h"
@@ -94,9 +96,23 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal, its "
       "shape memory and a global shape prior; objects evolve together, and the scene's collision pairs keep their "
       "surfaces apart.");
-  std::string imagePath, scenePath, out;
+  std::string imagePath, scenePath, atlasDir, out, metric = "auto";
+  PlacementOptions placing;
+  bool noRegister = false, noObjectRegister = false;
   app.add_option("--image", imagePath, "the image (NIfTI)")->required();
-  app.add_option("--scene", scenePath, "the scene (scene.json)")->required();
+  CLI::Option* sceneOpt = app.add_option("--scene", scenePath, "the scene (scene.json), its templates in place");
+  CLI::Option* atlasOpt =
+      app.add_option("--atlas", atlasDir, "an atlas folder (mskseg atlas), placed in the image by registration");
+  sceneOpt->excludes(atlasOpt);
+  app.add_option("--metric", metric,
+                 "registration metric with --atlas: auto (ncc when the image's modality is the atlas's, else mi), "
+                 "ncc or mi")
+      ->check(CLI::IsMember({"auto", "ncc", "mi"}));
+  app.add_flag("--no-register", noRegister,
+               "with --atlas: no registration at all; the atlas stays where --init-transform (or its own world) puts "
+               "it");
+  app.add_flag("--no-object-register", noObjectRegister,
+               "with --atlas: the global registration only, no registration of each object's neighbourhood");
   app.add_option("--out", out, "output folder (appears whole or not at all)")->required();
   SegmentOptions opts;
   SegmentOutputs outputs;
@@ -106,19 +122,39 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine), "
       "report.json (every parameter, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.");
   if (!parseArgs(app, argv)) return 0;
+  if (!sceneOpt->count() && !atlasOpt->count()) throw ParameterError("--scene", "", "give --scene or --atlas");
+  if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto"))
+    throw ParameterError("--atlas", "", "--metric, --no-register and --no-object-register need --atlas");
   checkSegmentOptions(opts);
   checkOutputFolder(out);
 
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
-  const Scene scene = loadScene(scenePath);
+  Scene scene;
+  std::optional<Placement> placement;
+  if (atlasOpt->count()) {
+    const Atlas atlas = loadAtlas(atlasDir);
+    placing.registration = !noRegister;
+    placing.perObject = !noObjectRegister;
+    placing.metric = parseRegistrationMetric(metric);
+    placing.threads = 0;
+    placement = placeAtlas(atlas, image, placing, stderrProgress("placement"));
+    scene = placedScene(atlas, *placement);
+  } else {
+    scene = loadScene(scenePath);
+  }
   const SegmentationResult res = segmentScene(image, scene, opts, stderrProgress("segment"));
 
   Json report;
   report["mskseg_version"] = MSK_VERSION;
   report["command"] = commandLineJson("segment", argv);
   report["image"] = fs::absolute(imagePath).string();
-  report["scene"] = fs::absolute(scenePath).string();
+  if (placement) {
+    report["atlas"] = fs::absolute(atlasDir).string();
+    report["placement"] = placementJson(*placement);
+  } else {
+    report["scene"] = fs::absolute(scenePath).string();
+  }
   report["image_info"] = imageJson(image, info);
   report["mesh_space"] = meshSpaceName(outputs.space);
   report.update(segmentReport(res, scene, opts));

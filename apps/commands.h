@@ -27,6 +27,8 @@ int cmdConvert(const std::vector<std::string>& args);
 int cmdTemplate(const std::vector<std::string>& args);
 /// mskseg scene: a scene (scene.json and templates) from the labels of a label map, mirrored if asked.
 int cmdScene(const std::vector<std::string>& args);
+/// mskseg atlas: an atlas folder (reference image, templates, scene) from a subject's image and labels.
+int cmdAtlas(const std::vector<std::string>& args);
 /// mskseg segment: evolve a scene's templates into an image.
 int cmdSegment(const std::vector<std::string>& args);
 /// mskseg batch: one scene segmented in every case of a cohort folder, each case in a process of its own.

@@ -22,6 +22,7 @@ struct Command {
 
 const std::map<std::string, Command>& commands() {
   static const std::map<std::string, Command> table = {
+      {"atlas", {msk::cli::cmdAtlas, "atlas folder (reference image, templates, scene) from a subject's labels"}},
       {"info", {msk::cli::cmdInfo, "describe a NIfTI volume (geometry, affine source, datatype, range) or a mesh"}},
       {"segment", {msk::cli::cmdSegment, "segment the objects of a scene (templates -> surfaces, labels, report, QC)"}},
       {"phantom", {msk::cli::cmdPhantom, "generate a synthetic thigh MRI with exact ground truth"}},

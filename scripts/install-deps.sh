@@ -10,6 +10,7 @@ PACKAGES=(
   libopencv-dev
   libvtk9-dev
   libnifti2-dev zlib1g-dev
+  libssl-dev
   nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang-format

@@ -101,10 +101,15 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // Polarity: the object's setting, else estimated once on the coarsest scale at the template position, on the template
   // as given (a vote over its vertices: remeshed, the same surface votes with other weights, and a borderline case such
   // as the phantom femur's thin cortex over bright marrow would flip).
+  // An object that learns its profiles on an image of its own (an atlas's reference) judges its polarity there, where
+  // its template lies on the boundary it was made from.
   st.polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
   if (st.polarity == Polarity::Auto) {
     const SimplexMesh given = st.out.remeshed ? simplexFromTriangles(obj.templ) : st.lv[0].simplex;
-    st.polarity = estimatePolarity(features.at(rs.sigmaMm[0]), given.positions, simplexVertexNormals(given));
+    Points positions = given.positions, normals = simplexVertexNormals(given);
+    if (st.profileFeatures) toProfileSource(obj, positions, normals);
+    FeatureCache& cache = st.profileFeatures ? *st.profileFeatures : features;
+    st.polarity = estimatePolarity(cache.at(rs.sigmaMm[0]), positions, normals);
   }
   st.out.polarity = st.polarity;
   st.current = st.lv[static_cast<size_t>(rs.levels - 1)].simplex;
@@ -133,7 +138,8 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     // Learned where the template came from (e.g. the mirrored contralateral structure) when the scene says so.
     Points positions = ref.simplex.positions, normals = simplexVertexNormals(ref.simplex);
     toProfileSource(*st.obj, positions, normals);
-    st.profiles = learnProfiles(feat, positions, normals, st.search, grid);
+    const ImageFeatures& source = st.profileFeatures ? st.profileFeatures->at(feat.sigmaMm) : feat;
+    st.profiles = learnProfiles(source, positions, normals, st.search, grid);
   }
   // Only what the object's model asks for is built.
   const ObjectModel& model = st.obj->model;

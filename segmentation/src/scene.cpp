@@ -9,6 +9,7 @@
 
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/segment_options.h"
 #include "msk/segmentation/surface_proximity.h"
 
@@ -190,20 +191,32 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   return m;
 }
 
-/// The object's optional "profiles_from" entry: {"mirror_x": c} or {"matrix": [[a, b, c, d] × 4]} (exactly one),
-/// as the affine map from template coordinates to where the profiles are learned. Only with the profile force.
-std::optional<Eigen::Matrix4d> parseProfileSource(const Checker& check, const Json& o, const std::string& where,
-                                                  const SceneObject& obj) {
+/// The object's optional "profiles_from" entry into obj.profileSource and obj.profileImagePath: {"mirror_x": c} or
+/// {"matrix": [[a, b, c, d] × 4]} as the affine map from template coordinates to where the profiles are learned, and
+/// {"image": path} for an image of its own to learn them on (relative to the scene's folder); at least one of the
+/// three, at most one of the first two. Only with the profile force.
+void parseProfileSource(const Checker& check, const Json& o, const std::string& where, const fs::path& folder,
+                        SceneObject& obj) {
   const Json* v = jsonMember(o, "profiles_from");
-  if (!v) return std::nullopt;
+  if (!v) return;
   const std::string at = where + " profiles_from";
   if (!v->is_object())
-    check.fail(at, std::string("expected {\"mirror_x\": x_mm} or {\"matrix\": 4x4}, found ") + v->type_name() + " " +
-                       shown(*v));
-  check.knownKeys(*v, {"mirror_x", "matrix"}, at, "key");
+    check.fail(at, std::string("expected {\"mirror_x\": x_mm}, {\"matrix\": 4x4} and/or {\"image\": path}, found ") +
+                       v->type_name() + " " + shown(*v));
+  check.knownKeys(*v, {"mirror_x", "matrix", "image"}, at, "key");
   const Json* mirror = jsonMember(*v, "mirror_x");
   const Json* matrix = jsonMember(*v, "matrix");
-  if (!mirror == !matrix) check.fail(at, "give exactly one of \"mirror_x\" and \"matrix\"");
+  if (const std::string* image = check.string(*v, "image", at, false)) {
+    const fs::path file(*image);
+    obj.profileImagePath = (file.is_absolute() ? file : folder / file).lexically_normal().string();
+  }
+  if (mirror && matrix) check.fail(at, "give at most one of \"mirror_x\" and \"matrix\"");
+  if (!mirror && !matrix && obj.profileImagePath.empty()) check.fail(at, "give \"mirror_x\", \"matrix\" or \"image\"");
+  if (obj.model.imageForce != TargetMode::Profile)
+    check.fail(where,
+               "\"profiles_from\" is given but the image force is gradient (profiles are learned only by the "
+               "profile force: set \"force\": \"profile\")");
+  if (!mirror && !matrix) return;
   Eigen::Matrix4d p = Eigen::Matrix4d::Identity();
   if (mirror) {
     // x' = 2c − x: the reflection about the plane x = c (RAS mm).
@@ -230,11 +243,7 @@ std::optional<Eigen::Matrix4d> parseProfileSource(const Checker& check, const Js
     if (!(std::abs(a.determinant()) > 1e-9 * scale))
       check.fail(at, "\"matrix\" is singular (its 3x3 part has no inverse)");
   }
-  if (obj.model.imageForce != TargetMode::Profile)
-    check.fail(where,
-               "\"profiles_from\" is given but the image force is gradient (profiles are learned only by the "
-               "profile force: set \"force\": \"profile\")");
-  return p;
+  obj.profileSource = p;
 }
 
 /// The optional pair parameters of a collision entry (object form) into `p`.
@@ -288,7 +297,7 @@ SceneObject parseObject(const Checker& check, const Json& o, size_t i, const fs:
     obj.polarity = p == 0 ? Polarity::Auto : p == 1 ? Polarity::DarkInside : Polarity::BrightInside;
   }
   obj.model = parseModel(check, o, where, obj);
-  obj.profileSource = parseProfileSource(check, o, where, obj);
+  parseProfileSource(check, o, where, folder, obj);
   return obj;
 }
 
@@ -398,6 +407,24 @@ void readTemplates(const Checker& check, Scene& scene) {
   }
 }
 
+/// Reads the images the objects learn their profiles on (each file once), errors naming the object.
+void readProfileImages(const Checker& check, Scene& scene) {
+  std::map<std::string, std::shared_ptr<const ImageF>> read;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    SceneObject& obj = scene.objects[i];
+    if (obj.profileImagePath.empty()) continue;
+    auto it = read.find(obj.profileImagePath);
+    if (it == read.end()) {
+      try {
+        it = read.emplace(obj.profileImagePath, std::make_shared<ImageF>(readNifti<float>(obj.profileImagePath))).first;
+      } catch (const IoError& e) {
+        check.fail(objectWhere(i, obj.name), "profiles_from image " + e.file() + ": " + e.problem());
+      }
+    }
+    obj.profileImage = it->second;
+  }
+}
+
 /// The "auto" entry's pairs: every pair of templates within its distance (or overlapping) not declared by name.
 void addAutoPairs(Scene& scene, const std::map<std::pair<int, int>, size_t>& declared) {
   if (scene.autoCollisions) {
@@ -467,6 +494,7 @@ Scene parseScene(const Json& json, const std::string& path) {
   parseObjects(check, json, path, scene);
   const std::map<std::pair<int, int>, size_t> declared = parseCollisions(check, json, scene);
   readTemplates(check, scene);
+  readProfileImages(check, scene);
   addAutoPairs(scene, declared);
   return scene;
 }
@@ -563,7 +591,11 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
     if (o.hasPolarity) j["polarity"] = polarityName(o.polarity);
     if (o.hasForce) j["force"] = kForces[static_cast<size_t>(o.force)];
     if (const Json model = modelJson(o.model, o.kind); !model.empty()) j["model"] = model;
-    if (o.profileSource) j["profiles_from"] = profileSourceJson(*o.profileSource);
+    if (o.profileSource || !o.profileImagePath.empty()) {
+      Json source = o.profileSource ? profileSourceJson(*o.profileSource) : Json::object();
+      if (!o.profileImagePath.empty()) source["image"] = pathFrom(folder, o.profileImagePath);
+      j["profiles_from"] = source;
+    }
     objects.push_back(j);
   }
   out["objects"] = objects;

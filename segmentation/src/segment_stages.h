@@ -78,6 +78,8 @@ struct ObjectState {
   std::unique_ptr<TargetConstraints> targets;
   std::unique_ptr<ShapeMatchingConstraint> prior;
   LearnedProfiles profiles;
+  /// Features of the image the object learns its profiles on when that is not the segmented one (obj->profileImage).
+  FeatureCache* profileFeatures = nullptr;
   // Medial axis (objects whose model asks for one): its particles follow every object's surface in the stacked system.
   MedialAxis axis;              ///< at the current level, template position
   RadialAttachment attachment;  ///< surface vertices of this level → axis segments, reference radii

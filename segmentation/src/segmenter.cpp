@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
 #include <string>
 
 #include "msk/core/error.h"
@@ -112,9 +114,15 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
                                         contacts[k].response});
   FeatureCache features(image);
   const auto te = Clock::now();
+  std::map<const ImageF*, std::unique_ptr<FeatureCache>> profileCaches;  // per image objects learn profiles on
   std::vector<ObjectState> objs(scene.objects.size());
   for (size_t i = 0; i < objs.size(); ++i) {
     objs[i].obj = &scene.objects[i];
+    if (const ImageF* own = scene.objects[i].profileImage.get()) {
+      std::unique_ptr<FeatureCache>& cache = profileCaches[own];
+      if (!cache) cache = std::make_unique<FeatureCache>(*own);
+      objs[i].profileFeatures = cache.get();
+    }
     prepareObject(objs[i], opts, res.settings, features);
   }
   const double detectSeconds = evolve(objs, res, scene, contacts, opts, features, image.grid, progress);
@@ -123,7 +131,9 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     st.out.seconds = since(te) / static_cast<double>(objs.size());
     res.objects.push_back(std::move(st.out));
   }
-  res.secondsPerStage["evolution"] = since(te) - features.seconds();
+  double featureSeconds = features.seconds();
+  for (const auto& [image, cache] : profileCaches) featureSeconds += cache->seconds();
+  res.secondsPerStage["evolution"] = since(te) - featureSeconds;
   std::vector<std::vector<size_t>> inside;  // each object's voxels, once its output surface is final
   if (opts.collision.enabled && !scene.collisions.empty())
     inside = separateOutputs(res, objs, scene, contacts, opts, image.grid);
@@ -135,7 +145,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     for (ObjectResult& o : res.objects) o.selfIntersections = selfIntersections(o.mesh);
     res.secondsPerStage["surface-check"] = since(tq);
   }
-  res.secondsPerStage["features"] = features.seconds();
+  res.secondsPerStage["features"] = featureSeconds;
   res.featureScalesBuilt = features.built();
   rasteriseLabels(res, scene, inside, image.grid);
   res.seconds = since(t0);

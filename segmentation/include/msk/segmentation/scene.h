@@ -1,6 +1,7 @@
 #pragma once
 /// Scenes: the objects to segment (name, label, kind, template, the constraints each gets) and their collision
 /// pairs (declared, or "auto" from template proximity), read from scene.json.
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -11,6 +12,7 @@
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/json.h"
+#include "msk/imaging/volume.h"
 #include "msk/segmentation/image_forces.h"
 
 namespace msk {
@@ -74,8 +76,12 @@ struct SceneObject {
   /// mirrored from. Profiles are then learned at P·x with normals A⁻ᵀn (A = P's 3×3 part), normalised and kept
   /// outward even when P mirrors. {"mirror_x": c} is the mirror about the plane x = c mm; {"matrix": [[4 numbers]
   /// × 4]} any invertible affine map (last row 0 0 0 1). Unset: profiles are learned on the template itself. Only
-  /// allowed with the profile image force; the source must lie inside the image.
+  /// allowed with the profile image force; the source must lie inside the image (or inside profileImage).
   std::optional<Eigen::Matrix4d> profileSource;
+  /// {"image": path} in "profiles_from": the image the profiles are learned on instead of the one segmented (an
+  /// atlas's reference image, whose world the template and profileSource then refer to); empty: the segmented image.
+  std::string profileImagePath;
+  std::shared_ptr<const ImageF> profileImage;  ///< read by loadScene(), shared by the objects naming the same file
 };
 
 // CollisionMode, CollisionTarget and CollisionResolution (with their names) live in msk/core/collision_response.h.

@@ -1,0 +1,52 @@
+// mskseg atlas: an atlas folder from a subject's image and labels (reference image, templates, scene, checksums).
+#include <iostream>
+
+#include "commands.h"
+#include "msk/segmentation/atlas.h"
+
+namespace msk::cli {
+
+int cmdAtlas(const std::vector<std::string>& argv) {
+  CommandLine app(
+      "atlas",
+      "Builds an atlas folder from a subject's image and labels: the reference image (cropped to the objects plus "
+      "--margin), one template per object (as `mskseg template` builds it), a scene.json whose objects learn their "
+      "intensity profiles on the reference image, and atlas.json (format version, objects with labels, kinds and "
+      "colours, the intensity normalisation, checksums of the sources and of every file). `mskseg segment --atlas "
+      "DIR` then places it in a new subject by registration.");
+  std::string imagePath, labelsPath, objects, out, collisions = "auto", modality;
+  AtlasOptions opts;
+  app.add_option("--image", imagePath, "the reference subject's image (NIfTI)")->required();
+  app.add_option("--labels", labelsPath, "its label map (NIfTI, same grid)")->required();
+  app.add_option("--objects", objects, "NAME:LABEL[:KIND],... (KIND bone|muscle|generic, default generic)")->required();
+  app.add_option("--collisions", collisions,
+                 "auto (pairs whose templates come within 2 mm, default), all (every pair) or none")
+      ->check(CLI::IsMember({"auto", "all", "none"}));
+  app.add_option("--modality", modality, "ct or mr (default: guessed from the intensities)")
+      ->check(CLI::IsMember({"ct", "mr"}));
+  addNumber(app, "--margin", opts.marginMm, "margin around the objects kept of the image, mm (default 30)");
+  addTemplateOptions(app, opts.templates);
+  app.add_option("--out", out, "the atlas folder to write (appears whole or not at all)")->required();
+  if (!parseArgs(app, argv)) return 0;
+  opts.objects = parseAtlasObjects(objects);
+  opts.collisions = collisions == "all"    ? AtlasCollisions::All
+                    : collisions == "none" ? AtlasCollisions::None
+                                           : AtlasCollisions::Auto;
+  opts.modality = modality;
+  checkTemplateOptions(opts.templates);
+  checkOutputFolder(out);
+  Json atlas;
+  writeFolderAtomically(out, [&](const std::string& dir) {
+    atlas = buildAtlas(imagePath, labelsPath, opts, dir, stderrProgress("atlas"));
+  });
+  std::cout << "atlas of " << opts.objects.size() << " object(s) -> " << out << " (modality "
+            << atlas["modality"].get<std::string>() << ", reference " << atlas["reference"]["dims"][0] << "x"
+            << atlas["reference"]["dims"][1] << "x" << atlas["reference"]["dims"][2] << " voxels)\n";
+  for (const Json& o : atlas["objects"])
+    std::cout << "  " << o["name"].get<std::string>() << " (label " << o["label"] << ", "
+              << o["kind"].get<std::string>() << "): template " << o["template_vertices"] << " vertices, "
+              << o["template_volume_ml"].get<double>() << " mL\n";
+  return 0;
+}
+
+}  // namespace msk::cli

@@ -1,0 +1,122 @@
+#pragma once
+/// Atlases: a reference subject's image, one template per structure and the scene that evolves them, in one folder
+/// (atlas.json, reference.nii.gz, template_<name>.vtk, scene.json); and the placement of an atlas in a new subject's
+/// image by registration (global, then per object), which turns the atlas's scene into one for that subject.
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "msk/core/log.h"
+#include "msk/imaging/json.h"
+#include "msk/imaging/registration.h"
+#include "msk/segmentation/scene.h"
+#include "msk/segmentation/template_builder.h"
+
+namespace msk {
+
+/// The atlas format this build writes and reads (atlas.json "format_version").
+constexpr int kAtlasFormatVersion = 1;
+
+/// One structure of an atlas to build.
+struct AtlasObjectSpec {
+  std::string name;
+  int label = 0;
+  ObjectKind kind = ObjectKind::Generic;
+};
+
+/// Parses "NAME:LABEL[:KIND],..." (KIND bone|muscle|generic, default generic). Throws ParameterError naming
+/// `option` for a malformed entry, a label out of 1..32767, an unknown kind, or a duplicate name or label.
+std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const std::string& option = "--objects");
+
+/// How an atlas's scene pairs its objects.
+enum class AtlasCollisions {
+  Auto,  ///< every pair whose templates come within 2 mm (scene "collisions": "auto")
+  All,   ///< every pair declared
+  None   ///< no collision pairs
+};
+
+/// Parameters of buildAtlas().
+struct AtlasOptions {
+  std::vector<AtlasObjectSpec> objects;
+  AtlasCollisions collisions = AtlasCollisions::Auto;
+  TemplateOptions templates;  ///< as `mskseg template` builds them
+  double marginMm = 30;       ///< the reference image is cropped to the templates' box grown by this, mm, ≥ 0
+  std::string modality;       ///< "ct" | "mr"; empty: guessModality() of the image
+};
+
+/// Builds an atlas from a subject's image and labels into the existing, empty folder `dir` (the caller makes the
+/// folder appear whole, e.g. by writing into a staging folder). Returns the atlas.json written. Throws IoError naming
+/// the file for unreadable inputs, labels on another grid than the image or a label not found; ParameterError for
+/// options out of range.
+Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, const AtlasOptions& opts,
+                const std::string& dir, const ProgressFn& progress = {});
+
+/// An atlas read from its folder.
+struct Atlas {
+  std::string dir;
+  Json meta;             ///< atlas.json
+  std::string modality;  ///< "ct" | "mr"
+  Scene scene;           ///< scene.json: templates in the reference's world, profiles learned on the reference
+  std::shared_ptr<const ImageF> reference;
+};
+
+/// Reads an atlas folder: atlas.json of this format and version, every file it lists present with the checksum it
+/// records, the scene's objects those of atlas.json. Throws IoError naming the file at fault.
+Atlas loadAtlas(const std::string& dir);
+
+/// How an atlas is placed in a subject.
+struct PlacementOptions {
+  /// Metric of the registrations; unset ("auto"): NCC when the subject's guessed modality is the atlas's, else MI.
+  std::optional<RegistrationMetric> metric;
+  bool registration = true;              ///< false: the atlas stays where `start` puts it (no registration at all)
+  bool perObject = true;                 ///< each object's neighbourhood registered after the global placement
+  std::optional<Eigen::Matrix4d> start;  ///< the user's atlas → subject start (RAS); unset: identity + search
+  double objectMarginMm = 15;            ///< neighbourhood of an object: its template's box grown by this, mm
+  int threads = 0;                       ///< registration threads (0 = all cores)
+};
+
+/// One object's placement.
+struct ObjectPlacement {
+  std::string name;
+  Eigen::Matrix4d transform = Eigen::Matrix4d::Identity();  ///< atlas → subject for this object
+  bool registered = false;                   ///< its own registration was kept (false: the global placement)
+  std::string note;                          ///< why its own registration was not kept, if it ran
+  double metricBefore = 0, metricAfter = 0;  ///< its neighbourhood's metric at the global and at its own placement
+  double moveDegrees = 0, moveMm = 0;        ///< its own placement against the global one (at its template centre)
+  double scale = 1;                          ///< cube root of |det| of its transform
+  double seconds = 0;
+};
+
+/// A collision pair of the atlas's scene after the placement.
+struct PairPlacement {
+  std::string a, b;
+  /// Share of either template's vertices inside the other (the larger), under the global and the final placement.
+  double overlapGlobal = 0, overlapPlaced = 0;
+};
+
+/// Where an atlas was placed in a subject.
+struct Placement {
+  std::string metric;                                    ///< "ncc" | "mi" ("" without registration)
+  Eigen::Matrix4d global = Eigen::Matrix4d::Identity();  ///< atlas → subject
+  std::optional<RegistrationResult> registration;        ///< the global registration, if it ran
+  std::vector<ObjectPlacement> objects;                  ///< per scene object
+  std::vector<PairPlacement> pairs;                      ///< per collision pair of the scene
+  double seconds = 0;
+};
+
+/// Places `atlas` in `subject`: the global registration (affine, from `opts.start` or the moments and a search), then
+/// each object's neighbourhood (similarity) from there; an object's own placement is kept when it improves its
+/// neighbourhood's metric and moves it less than 30° and 30 mm; it is then pulled back toward the global placement as
+/// far as needed for no collision pair to reach into each other deeper than under the global placement.
+Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementOptions& opts,
+                     const ProgressFn& progress = {});
+
+/// The atlas's scene placed in the subject: each template moved by its object's transform (faces flipped if it
+/// mirrors), its profiles still learned on the reference where the template came from.
+Scene placedScene(const Atlas& atlas, const Placement& placement);
+
+/// The placement as report.json holds it: metric, transforms (4×4 rows), registration stages, per object figures.
+Json placementJson(const Placement& placement);
+
+}  // namespace msk

@@ -1,0 +1,455 @@
+#include "msk/segmentation/atlas.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <regex>
+#include <set>
+
+#include "msk/core/error.h"
+#include "msk/core/winding_number.h"
+#include "msk/imaging/checksum.h"
+#include "msk/imaging/filters.h"
+#include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
+
+namespace fs = std::filesystem;
+
+namespace msk {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+const char* kFormat = "mskseg-atlas";
+const char* kReference = "reference.nii.gz";
+const char* kScene = "scene.json";
+
+/// Display colours of an atlas's objects in order (RGB 0..255), bones first in a bone colour.
+Json objectColour(ObjectKind kind, size_t index) {
+  static const int muscles[][3] = {{192, 104, 88}, {221, 130, 101}, {183, 69, 56}, {240, 160, 120},
+                                   {160, 80, 110}, {200, 120, 150}, {150, 60, 40}, {230, 100, 80}};
+  if (kind == ObjectKind::Bone) return Json::array({241, 214, 145});
+  const int* c = muscles[index % 8];
+  return Json::array({c[0], c[1], c[2]});
+}
+
+Json matrixJson(const Eigen::Matrix4d& m) {
+  Json rows = Json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back(Json::array({m(r, 0), m(r, 1), m(r, 2), m(r, 3)}));
+  return rows;
+}
+
+/// The template's axis-aligned box, RAS mm.
+std::array<Eigen::Vector3d, 2> meshBox(const TriangleMesh& m) {
+  return {m.vertices.colwise().minCoeff().transpose(), m.vertices.colwise().maxCoeff().transpose()};
+}
+
+Eigen::Vector3d applyTo(const Eigen::Matrix4d& t, const Eigen::Vector3d& p) {
+  return t.topLeftCorner<3, 3>() * p + t.topRightCorner<3, 1>();
+}
+
+}  // namespace
+
+std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const std::string& option) {
+  static const std::regex nameRe("[A-Za-z0-9][A-Za-z0-9_.-]{0,63}");
+  std::vector<AtlasObjectSpec> out;
+  std::set<std::string> names;
+  std::set<int> labels;
+  size_t begin = 0;
+  while (begin <= text.size()) {
+    const size_t end = std::min(text.find(',', begin), text.size());
+    const std::string entry = text.substr(begin, end - begin);
+    begin = end + 1;
+    std::vector<std::string> parts;
+    for (size_t b = 0;;) {
+      const size_t e = entry.find(':', b);
+      parts.push_back(entry.substr(b, e == std::string::npos ? std::string::npos : e - b));
+      if (e == std::string::npos) break;
+      b = e + 1;
+    }
+    if (parts.size() < 2 || parts.size() > 3)
+      throw ParameterError(option, entry, "each entry must be NAME:LABEL or NAME:LABEL:KIND");
+    AtlasObjectSpec spec;
+    spec.name = parts[0];
+    if (!std::regex_match(spec.name, nameRe))
+      throw ParameterError(option, entry,
+                           "names are 1-64 characters of letters, digits, '_', '.', '-', starting with a letter or "
+                           "digit");
+    char* stop = nullptr;
+    const long label = std::strtol(parts[1].c_str(), &stop, 10);
+    if (parts[1].empty() || *stop != '\0' || label < 1 || label > 32767)
+      throw ParameterError(option, entry, "the label must be an integer in 1..32767");
+    spec.label = static_cast<int>(label);
+    if (parts.size() == 3) {
+      const std::optional<ObjectKind> kind = parseObjectKind(parts[2]);
+      if (!kind) throw ParameterError(option, entry, "the kind must be bone, muscle or generic");
+      spec.kind = *kind;
+    }
+    if (!names.insert(spec.name).second) throw ParameterError(option, entry, "duplicate name " + spec.name);
+    if (!labels.insert(spec.label).second)
+      throw ParameterError(option, entry, "duplicate label " + std::to_string(spec.label));
+    out.push_back(spec);
+    if (end == text.size()) break;
+  }
+  return out;
+}
+
+Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, const AtlasOptions& opts,
+                const std::string& dir, const ProgressFn& progress) {
+  if (opts.objects.empty()) throw ParameterError("--objects", "", "name at least one object");
+  if (!(opts.marginMm >= 0 && opts.marginMm <= 500))
+    throw ParameterError("--margin", std::to_string(opts.marginMm), "must be in [0, 500] mm");
+  checkTemplateOptions(opts.templates);
+  NiftiInfo info;
+  const ImageF image = readNifti<float>(imagePath, &info);
+  const LabelMap labels = readNifti<int32_t>(labelsPath);
+  if (!labels.grid.sameGeometry(image.grid, 1e-3))
+    throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");
+  std::map<int32_t, size_t> counts;
+  for (int32_t v : labels.data) ++counts[v];
+
+  Scene scene;
+  Json objects = Json::array();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  for (size_t i = 0; i < opts.objects.size(); ++i) {
+    const AtlasObjectSpec& spec = opts.objects[i];
+    if (!counts.count(spec.label))
+      throw IoError(labelsPath, "label " + std::to_string(spec.label) + " (" + spec.name + ") not found");
+    if (progress) progress(static_cast<double>(i) / static_cast<double>(opts.objects.size() + 1), spec.name);
+    TemplateReport tr;
+    SceneObject obj;
+    obj.name = spec.name;
+    obj.label = spec.label;
+    obj.kind = spec.kind;
+    obj.templ = templateFromLabels(labels, spec.label, opts.templates, &tr);
+    obj.templatePath = dir + "/template_" + spec.name + ".vtk";
+    obj.model = defaultModel(spec.kind);
+    obj.model.imageForce = TargetMode::Profile;
+    obj.hasForce = true;
+    obj.force = TargetMode::Profile;
+    obj.profileImagePath = dir + "/" + kReference;
+    const auto box = meshBox(obj.templ);
+    lo = lo.cwiseMin(box[0]);
+    hi = hi.cwiseMax(box[1]);
+    writeMesh(obj.templatePath, obj.templ, MeshSpace::LPS);
+    Json o;
+    o["name"] = spec.name;
+    o["label"] = spec.label;
+    o["kind"] = objectKindName(spec.kind);
+    o["colour"] = objectColour(spec.kind, i);
+    o["template"] = fs::path(obj.templatePath).filename().string();
+    o["template_vertices"] = obj.templ.vertexCount();
+    o["template_volume_ml"] = enclosedVolume(obj.templ) / 1000.0;
+    o["label_voxels"] = tr.voxels;
+    objects.push_back(o);
+    scene.objects.push_back(std::move(obj));
+  }
+  if (opts.collisions == AtlasCollisions::Auto) scene.autoCollisions = AutoCollisions{};
+  if (opts.collisions == AtlasCollisions::All)
+    for (int a = 0; a < static_cast<int>(scene.objects.size()); ++a)
+      for (int b = a + 1; b < static_cast<int>(scene.objects.size()); ++b) {
+        CollisionPair p;
+        p.a = a;
+        p.b = b;
+        scene.collisions.push_back(p);
+      }
+  scene.description = "atlas from " + fs::path(imagePath).filename().string();
+  writeScene(scene, dir + "/" + kScene);
+
+  // The reference image: the templates' box grown by the margin, voxels and affine as read.
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.marginMm);
+  const ImageF reference = cropToWorldBox(image, lo - margin, hi + margin);
+  NiftiWriteOptions wo;
+  wo.description = "mskseg atlas reference";
+  writeNifti(dir + "/" + kReference, reference, DataType::Float32, wo);
+
+  Json atlas;
+  atlas["format"] = kFormat;
+  atlas["format_version"] = kAtlasFormatVersion;
+  atlas["mskseg_version"] = MSK_VERSION;
+  atlas["modality"] = opts.modality.empty() ? guessModality(image) : opts.modality;
+  Json ref;
+  ref["image"] = kReference;
+  ref["dims"] = Json::array({reference.grid.dims[0], reference.grid.dims[1], reference.grid.dims[2]});
+  ref["spacing_mm"] = Json::array({reference.grid.spacing[0], reference.grid.spacing[1], reference.grid.spacing[2]});
+  ref["margin_mm"] = opts.marginMm;
+  ref["box_ras_mm"] = Json::array({Json::array({lo.x(), lo.y(), lo.z()}), Json::array({hi.x(), hi.y(), hi.z()})});
+  atlas["reference"] = ref;
+  // Stored as read; both the registration and the profiles normalise every image the same way when they use it.
+  Json norm;
+  norm["method"] = "robust percentiles: the 1st and 99th percentile of an image's voxels mapped to 0 and 1";
+  norm["applied"] = "when used, to the reference and to the subject alike (registration, learned profiles)";
+  norm["reference_p1"] = percentile(reference, 1.0);
+  norm["reference_p99"] = percentile(reference, 99.0);
+  norm["profiles"] = "zero-mean unit-norm, compared by normalised cross-correlation";
+  atlas["intensity_normalisation"] = norm;
+  atlas["objects"] = objects;
+  atlas["collisions"] = opts.collisions == AtlasCollisions::Auto  ? "auto"
+                        : opts.collisions == AtlasCollisions::All ? "all"
+                                                                  : "none";
+  Json src;
+  src["image"] = fs::absolute(imagePath).string();
+  src["image_sha256"] = sha256File(imagePath);
+  src["labels"] = fs::absolute(labelsPath).string();
+  src["labels_sha256"] = sha256File(labelsPath);
+  atlas["sources"] = Json::array({src});
+  Json files = Json::object();
+  for (const auto& f : {std::string(kReference), std::string(kScene)}) files[f] = sha256File(dir + "/" + f);
+  for (const SceneObject& o : scene.objects)
+    files[fs::path(o.templatePath).filename().string()] = sha256File(o.templatePath);
+  atlas["files_sha256"] = files;
+  writeJsonFile(dir + "/atlas.json", atlas);
+  if (progress) progress(1.0, "atlas");
+  return atlas;
+}
+
+Atlas loadAtlas(const std::string& dir) {
+  const std::string metaPath = (fs::path(dir) / "atlas.json").string();
+  if (!fs::is_directory(dir)) throw IoError(dir, "not a folder (an atlas is a folder made by mskseg atlas)");
+  if (!fs::exists(metaPath)) throw IoError(metaPath, "missing (not an atlas folder made by mskseg atlas)");
+  Atlas a;
+  a.dir = dir;
+  a.meta = readJsonFile(metaPath);
+  const Json* format = jsonMember(a.meta, "format");
+  if (!format || !format->is_string() || format->get<std::string>() != kFormat)
+    throw IoError(metaPath, std::string("\"format\" is not \"") + kFormat + "\"");
+  const Json* version = jsonMember(a.meta, "format_version");
+  if (!version || !version->is_number_integer() || version->get<int>() != kAtlasFormatVersion)
+    throw IoError(metaPath, "format version " + (version ? version->dump() : std::string("missing")) +
+                                ", this mskseg reads version " + std::to_string(kAtlasFormatVersion));
+  const Json* files = jsonMember(a.meta, "files_sha256");
+  if (!files || !files->is_object() || !jsonMember(*files, kReference) || !jsonMember(*files, kScene))
+    throw IoError(metaPath, "\"files_sha256\" must list reference.nii.gz, scene.json and the templates");
+  for (const auto& kv : files->items()) {
+    const std::string& name = kv.key();
+    if (name.empty() || name.find('/') != std::string::npos || name == "." || name == ".." || !kv.value().is_string())
+      throw IoError(metaPath, "\"files_sha256\" entry \"" + name + "\" is not a file name with a checksum");
+    const std::string path = (fs::path(dir) / name).string();
+    if (!fs::is_regular_file(path)) throw IoError(path, "missing from the atlas (atlas.json lists it)");
+    if (sha256File(path) != kv.value().get<std::string>())
+      throw IoError(path, "checksum does not match atlas.json (the file changed after the atlas was built)");
+  }
+  const Json* modality = jsonMember(a.meta, "modality");
+  a.modality = modality && modality->is_string() ? modality->get<std::string>() : "mr";
+  a.scene = loadScene((fs::path(dir) / kScene).string());
+  const Json* objects = jsonMember(a.meta, "objects");
+  if (!objects || !objects->is_array() || objects->size() != a.scene.objects.size())
+    throw IoError(metaPath, "\"objects\" does not list the objects of scene.json");
+  for (const SceneObject& o : a.scene.objects) {
+    if (!files->contains(fs::path(o.templatePath).filename().string()) ||
+        fs::path(o.templatePath).parent_path().lexically_normal() != fs::path(dir).lexically_normal())
+      throw IoError(metaPath, "template of " + o.name + " is not one of the atlas's checked files");
+    if (o.profileImage) a.reference = o.profileImage;
+  }
+  if (!a.reference) a.reference = std::make_shared<ImageF>(readNifti<float>((fs::path(dir) / kReference).string()));
+  return a;
+}
+
+namespace {
+
+/// How deep the surfaces of a scene pair reach into each other: the share of each one's vertices inside the other
+/// (winding number), the larger of the two.
+double pairOverlap(const TriangleMesh& a, const TriangleMesh& b) {
+  auto inside = [](const TriangleMesh& m, const TriangleMesh& by) {
+    const WindingNumber w(by.vertices, by.faces);
+    int n = 0;
+    for (int v = 0; v < m.vertexCount(); ++v) n += w.inside(m.vertices.row(v).transpose()) ? 1 : 0;
+    return static_cast<double>(n) / std::max(1, m.vertexCount());
+  };
+  return std::max(inside(a, b), inside(b, a));
+}
+
+TriangleMesh moved(const TriangleMesh& m, const Eigen::Matrix4d& t) {
+  TriangleMesh out = m;
+  transformMesh(out, t);
+  return out;
+}
+
+/// The registration of one object's neighbourhood, from the global placement; kept only under the conditions of
+/// placeAtlas().
+ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const ImageF& subject, const Placement& global,
+                            const RegistrationOptions& base, const PlacementOptions& opts) {
+  const auto t0 = Clock::now();
+  ObjectPlacement op;
+  op.name = obj.name;
+  op.transform = global.global;
+  const auto box = meshBox(obj.templ);
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.objectMarginMm);
+  const Eigen::Vector3d centre = 0.5 * (box[0] + box[1]);
+  try {
+    const ImageF neighbourhood = cropToWorldBox(*atlas.reference, box[0] - margin, box[1] + margin);
+    RegistrationOptions ro = base;
+    ro.model = PriorTransform::Similarity;
+    ro.initialise = false;
+    const RegistrationResult r = registerImages(neighbourhood, subject, ro, global.global);
+    op.metricBefore = r.startMetric;
+    op.metricAfter = r.metric;
+    const TransformDifference d = transformDifference(r.transform, global.global, centre);
+    op.moveDegrees = d.degrees;
+    op.moveMm = d.mm;
+    if (!(r.metric > r.startMetric))
+      op.note = "its own registration did not improve its neighbourhood's match";
+    else if (d.degrees > 30 || d.mm > 30)
+      op.note = "its own registration moved it too far from the global placement";
+    else {
+      op.transform = r.transform;
+      op.registered = true;
+    }
+  } catch (const Error& e) {
+    op.note = std::string("its own registration failed: ") + e.what();
+  }
+  op.scale = std::cbrt(std::abs(op.transform.topLeftCorner<3, 3>().determinant()));
+  op.seconds = since(t0);
+  return op;
+}
+
+/// Pulls objects back toward the global placement (their own move halved, up to three times, then undone), the one
+/// that moved most first, until no scene pair reaches into each other deeper than under the global placement: the
+/// share of either surface's vertices inside the other may grow by at most 0.5 %. Records each pair's figures.
+void keepPairsApart(const Atlas& atlas, Placement& p) {
+  const Scene& scene = atlas.scene;
+  std::vector<Eigen::Matrix4d> own;
+  std::vector<double> share(p.objects.size(), 1.0);  // how much of its own move each object keeps
+  for (const ObjectPlacement& o : p.objects) own.push_back(o.transform);
+  auto placed = [&](size_t i) { return moved(scene.objects[i].templ, p.objects[i].transform); };
+  p.pairs.clear();
+  for (const CollisionPair& pair : scene.collisions) {
+    const size_t ia = static_cast<size_t>(pair.a), ib = static_cast<size_t>(pair.b);
+    PairPlacement pp;
+    pp.a = scene.objects[ia].name;
+    pp.b = scene.objects[ib].name;
+    pp.overlapGlobal = pairOverlap(moved(scene.objects[ia].templ, p.global), moved(scene.objects[ib].templ, p.global));
+    pp.overlapPlaced = pairOverlap(placed(ia), placed(ib));
+    while (pp.overlapPlaced > pp.overlapGlobal + 0.005 && (p.objects[ia].registered || p.objects[ib].registered)) {
+      const bool pickA =
+          p.objects[ia].registered &&
+          (!p.objects[ib].registered || share[ia] * p.objects[ia].moveMm >= share[ib] * p.objects[ib].moveMm);
+      const size_t i = pickA ? ia : ib;
+      ObjectPlacement& o = p.objects[i];
+      share[i] = share[i] > 0.2 ? 0.5 * share[i] : 0.0;
+      o.transform = p.global + share[i] * (own[i] - p.global);
+      o.scale = std::cbrt(std::abs(o.transform.topLeftCorner<3, 3>().determinant()));
+      if (share[i] == 0.0) {
+        o.registered = false;
+        o.note = "its own registration brought it into a collision partner";
+      } else {
+        o.note = "its own move was scaled by " + std::to_string(share[i]) + " to keep out of a collision partner";
+      }
+      pp.overlapPlaced = pairOverlap(placed(ia), placed(ib));
+    }
+    p.pairs.push_back(pp);
+  }
+}
+
+}  // namespace
+
+Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementOptions& opts,
+                     const ProgressFn& progress) {
+  const auto t0 = Clock::now();
+  Placement p;
+  p.global = opts.start.value_or(Eigen::Matrix4d::Identity());
+  RegistrationOptions ro;
+  ro.threads = opts.threads;
+  ro.metric = opts.metric.value_or(guessModality(subject) == atlas.modality ? RegistrationMetric::Ncc
+                                                                            : RegistrationMetric::MattesMi);
+  if (opts.registration) {
+    p.metric = registrationMetricName(ro.metric);
+    RegistrationOptions global = ro;
+    global.model = PriorTransform::Affine;
+    global.initialise = !opts.start.has_value();
+    if (progress) progress(0.0, "global registration");
+    p.registration = registerImages(*atlas.reference, subject, global, p.global);
+    p.global = p.registration->transform;
+  }
+  for (size_t i = 0; i < atlas.scene.objects.size(); ++i) {
+    const SceneObject& obj = atlas.scene.objects[i];
+    if (progress)
+      progress(0.5 + 0.5 * static_cast<double>(i) / static_cast<double>(atlas.scene.objects.size()), obj.name);
+    if (opts.registration && opts.perObject) {
+      p.objects.push_back(placeObject(atlas, obj, subject, p, ro, opts));
+    } else {
+      ObjectPlacement op;
+      op.name = obj.name;
+      op.transform = p.global;
+      op.scale = std::cbrt(std::abs(p.global.topLeftCorner<3, 3>().determinant()));
+      p.objects.push_back(op);
+    }
+  }
+  keepPairsApart(atlas, p);
+  p.seconds = since(t0);
+  return p;
+}
+
+Scene placedScene(const Atlas& atlas, const Placement& placement) {
+  Scene scene = atlas.scene;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    SceneObject& o = scene.objects[i];
+    const Eigen::Matrix4d& t = placement.objects[i].transform;
+    transformMesh(o.templ, t);
+    // Profiles are learned where the placed template came from: the reference's world (through the object's own
+    // source map there, if it has one).
+    const Eigen::Matrix4d back = t.inverse();
+    o.profileSource = o.profileSource ? Eigen::Matrix4d(*o.profileSource * back) : back;
+  }
+  return scene;
+}
+
+Json placementJson(const Placement& placement) {
+  Json j;
+  j["metric"] = placement.metric.empty() ? Json() : Json(placement.metric);
+  j["global_atlas_to_subject_ras"] = matrixJson(placement.global);
+  j["seconds"] = placement.seconds;
+  if (placement.registration) {
+    const RegistrationResult& r = *placement.registration;
+    Json reg;
+    reg["metric_start"] = r.startMetric;
+    reg["metric_end"] = r.metric;
+    reg["overlap"] = r.overlap;
+    reg["seconds"] = r.seconds;
+    Json stages = Json::array();
+    for (const RegistrationStage& s : r.stages) {
+      Json st;
+      st["stage"] = s.name;
+      st["metric_before"] = s.metricBefore;
+      st["metric_after"] = s.metricAfter;
+      st["iterations"] = s.iterations;
+      st["seconds"] = s.seconds;
+      stages.push_back(st);
+    }
+    reg["stages"] = stages;
+    j["global_registration"] = reg;
+  }
+  Json objects = Json::array();
+  for (const ObjectPlacement& o : placement.objects) {
+    Json oj;
+    oj["name"] = o.name;
+    oj["own_registration_kept"] = o.registered;
+    if (!o.note.empty()) oj["note"] = o.note;
+    oj["atlas_to_subject_ras"] = matrixJson(o.transform);
+    oj["metric_before"] = o.metricBefore;
+    oj["metric_after"] = o.metricAfter;
+    oj["move_from_global_degrees"] = o.moveDegrees;
+    oj["move_from_global_mm"] = o.moveMm;
+    oj["scale"] = o.scale;
+    oj["seconds"] = o.seconds;
+    objects.push_back(oj);
+  }
+  j["objects"] = objects;
+  Json pairs = Json::array();
+  for (const PairPlacement& pp : placement.pairs) {
+    Json pj;
+    pj["pair"] = Json::array({pp.a, pp.b});
+    pj["vertices_inside_partner_global"] = pp.overlapGlobal;
+    pj["vertices_inside_partner_placed"] = pp.overlapPlaced;
+    pairs.push_back(pj);
+  }
+  j["pairs"] = pairs;
+  return j;
+}
+
+}  // namespace msk
