@@ -42,6 +42,9 @@ struct RegistrationOptions {
   /// from the reference's size and both images' voxels.
   std::vector<double> levelSpacingMm;
   int maxIterations = 100;  ///< per stage and level, > 0
+  /// Sample points per level at most (≥ 100): beyond it, a deterministic pseudo-random subset of the reference's
+  /// level voxels.
+  int maxSamples = 40000;
   int threads = 0;          ///< 0 = all cores; the result does not depend on it
 };
 
