@@ -1,7 +1,7 @@
 #include "msk/imaging/registration.h"
 
-#include <Eigen/Geometry>
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <chrono>
@@ -65,7 +65,8 @@ double meanVoxelMm(const Grid& g) { return std::cbrt(g.spacing.prod()); }
 /// the next level keeps ≥ 10 samples across the reference's mean extent, at most kMaxDefaultLevels.
 std::vector<double> defaultLevels(const Grid& reference, const Grid& subject) {
   const double finest = std::max({kFinestDefaultMm, meanVoxelMm(reference), meanVoxelMm(subject)});
-  const Eigen::Vector3d extent = (reference.dims.cast<double>() - Eigen::Vector3d::Ones()).cwiseProduct(reference.spacing);
+  const Eigen::Vector3d extent =
+      (reference.dims.cast<double>() - Eigen::Vector3d::Ones()).cwiseProduct(reference.spacing);
   const double meanExtent = extent.mean();
   std::vector<double> levels{finest};
   while (static_cast<int>(levels.size()) < kMaxDefaultLevels && 2 * levels.back() <= meanExtent / 10)
@@ -87,11 +88,11 @@ std::array<Eigen::Vector3d, 2> mappedBox(const Grid& g, const Eigen::Matrix4d& T
 
 /// The images and metric evaluators of every pyramid level, plus the coarse search's.
 struct Pyramid {
-  std::vector<double> spacing;                     // mm, coarse → fine
-  std::vector<reg::ReferenceSamples> samples;      // per level
-  std::vector<reg::SubjectLevel> subject;          // per level
-  std::vector<reg::MetricEvaluator> evaluator;     // per level
-  reg::ReferenceSamples searchSamples;             // coarsest level, at most kSearchSamples
+  std::vector<double> spacing;                  // mm, coarse → fine
+  std::vector<reg::ReferenceSamples> samples;   // per level
+  std::vector<reg::SubjectLevel> subject;       // per level
+  std::vector<reg::MetricEvaluator> evaluator;  // per level
+  reg::ReferenceSamples searchSamples;          // coarsest level, at most kSearchSamples
   reg::MetricEvaluator searchEvaluator;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the reference's centre (mm): the update's pivot
   Eigen::Vector3d referenceCentroid = Eigen::Vector3d::Zero(), subjectCentroid = Eigen::Vector3d::Zero();
@@ -248,8 +249,8 @@ StageOutcome search(Pyramid& p, const Eigen::Matrix4d& start, const Registration
     StageOutcome o = optimise(p.evaluator.front(), scored[k].second, model, p.spacing.front(),
                               std::min(opts.maxIterations, kSearchIterations), p);
     iterations += o.iterations;
-    if (o.scoreAfter > best.scoreAfter) best.transform = o.transform, best.scoreAfter = o.scoreAfter,
-                                        best.metricAfter = o.metricAfter;
+    if (o.scoreAfter > best.scoreAfter)
+      best.transform = o.transform, best.scoreAfter = o.scoreAfter, best.metricAfter = o.metricAfter;
   }
   best.iterations = iterations;
   return best;

@@ -87,11 +87,11 @@ class MetricEvaluator {
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
   double radius_ = 1;
   int threads_ = 1;
-  std::vector<int> fixedBin_;                       // MI: the reference's bin per sample
-  std::vector<unsigned char> inside_;               // per sample: maps inside the subject
-  std::vector<float> moving_;                       // per sample: subject value
-  std::vector<Eigen::Vector3f> pulledGradient_;     // per sample: d(subject value)/d(reference point)
-  std::vector<double> weight_;                      // per sample: d(metric)/d(subject value)
+  std::vector<int> fixedBin_;                    // MI: the reference's bin per sample
+  std::vector<unsigned char> inside_;            // per sample: maps inside the subject
+  std::vector<float> moving_;                    // per sample: subject value
+  std::vector<Eigen::Vector3f> pulledGradient_;  // per sample: d(subject value)/d(reference point)
+  std::vector<double> weight_;                   // per sample: d(metric)/d(subject value)
 };
 
 }  // namespace msk::reg

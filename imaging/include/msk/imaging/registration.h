@@ -45,7 +45,7 @@ struct RegistrationOptions {
   /// Sample points per level at most (≥ 100): beyond it, a deterministic pseudo-random subset of the reference's
   /// level voxels.
   int maxSamples = 40000;
-  int threads = 0;          ///< 0 = all cores; the result does not depend on it
+  int threads = 0;  ///< 0 = all cores; the result does not depend on it
 };
 
 /// One stage of a registration (e.g. "search", "rigid 4 mm", "affine 2 mm").
