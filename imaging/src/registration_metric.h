@@ -24,12 +24,6 @@ struct ReferenceSamples {
   std::vector<float> values;
 };
 
-/// A reference level image and a subject level image at one pyramid spacing.
-struct Level {
-  double spacingMm = 0;
-  ImageF reference, subject;  ///< smoothed (sigma 0.5 · spacingMm) and normalised, on grids of about that spacing
-};
-
 /// The pyramid of `image` at `spacingsMm` (coarse → fine): each level smoothed with sigma 0.5·spacing (incrementally,
 /// from the next finer level), resampled to a grid of the same orientation with spacing max(native, level) per axis,
 /// then normalised (1st/99th percentiles → 0/1; min/max if those coincide). Throws Error if `image` is constant.
