@@ -48,11 +48,6 @@ Json matrixJson(const Eigen::Matrix4d& m) {
 std::array<Eigen::Vector3d, 2> meshBox(const TriangleMesh& m) {
   return {m.vertices.colwise().minCoeff().transpose(), m.vertices.colwise().maxCoeff().transpose()};
 }
-
-Eigen::Vector3d applyTo(const Eigen::Matrix4d& t, const Eigen::Vector3d& p) {
-  return t.topLeftCorner<3, 3>() * p + t.topRightCorner<3, 1>();
-}
-
 }  // namespace
 
 std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const std::string& option) {
