@@ -31,6 +31,7 @@
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/atlas.h"
 #include "msk/segmentation/metrics.h"
 
 namespace fs = std::filesystem;
@@ -48,6 +49,7 @@ struct ObjectScore {
 /// One case: where it reads and writes, and how it ended.
 struct Case {
   std::string name, image, scene, out, log;
+  std::string atlas;                        // with --atlas: the atlas folder (then `scene` is empty)
   std::string reference, referenceProblem;  // with --reference: the case's reference labels, or why there are none
   std::string status = "pending";           // ok | failed | done (by an earlier run) | skipped (no image) | pending
   std::string message;
@@ -196,7 +198,12 @@ std::string isoTime(std::time_t t) {
 
 /// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid.
 pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded) {
-  std::vector<std::string> args = {exe, "segment", "--image", c.image, "--scene", c.scene, "--out", c.out};
+  std::vector<std::string> args = {exe, "segment", "--image", c.image, "--out", c.out};
+  if (c.atlas.empty()) {
+    args.insert(args.end(), {"--scene", c.scene});
+  } else {
+    args.insert(args.end(), {"--atlas", c.atlas});
+  }
   args.insert(args.end(), forwarded.begin(), forwarded.end());
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
@@ -223,7 +230,7 @@ void say(const std::string& line) {
 
 /// What a batch was asked to do.
 struct BatchSettings {
-  std::string casesDir, scene, out, imageName = "image.nii.gz", referenceName;
+  std::string casesDir, scene, atlas, out, imageName = "image.nii.gz", referenceName;
   int jobs = 1;
   bool redo = false;
   std::vector<std::string> forwarded;  ///< options after "--", for every case's `mskseg segment`
@@ -239,12 +246,16 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   if (dash != argvIn.end()) b.forwarded.assign(dash + 1, argvIn.end());
   CommandLine app(
       "batch",
-      "Segments every case of a cohort with one scene: each subfolder of --cases holding the image NAME is a case; "
+      "Segments every case of a cohort with one scene or atlas: each subfolder of --cases holding the image NAME is a "
+      "case; "
       "a case folder's own scene.json, if present, replaces --scene for it. Each case runs `mskseg segment` in a "
       "process of its own (a failing case ends alone) and writes OUT/<case>/ whole or not at all; its log goes to "
       "OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists, unless --redo.");
   app.add_option("--cases", b.casesDir, "the cohort folder")->required();
-  app.add_option("--scene", b.scene, "the scene of every case without a scene.json of its own");
+  CLI::Option* sceneOpt = app.add_option("--scene", b.scene, "the scene of every case without a scene.json of its own");
+  app.add_option("--atlas", b.atlas,
+                 "an atlas folder (mskseg atlas) placed in every case by registration, instead of a scene")
+      ->excludes(sceneOpt);
   app.add_option("--out", b.out, "output folder")->required();
   app.add_option("--image", b.imageName,
                  "the image file in each case folder (default image.nii.gz), or a shell pattern matching one file "
@@ -262,11 +273,21 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
       "version, counts, times). Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 "
       "for a usage error.");
   if (!parseArgs(app, argv)) return false;
+  // `-- --atlas DIR` is the batch's --atlas given after the separator.
+  if (auto it = std::find(b.forwarded.begin(), b.forwarded.end(), std::string("--atlas")); it != b.forwarded.end()) {
+    if (it + 1 == b.forwarded.end()) throw UsageError("--atlas after -- needs a folder");
+    if (!b.atlas.empty() || !b.scene.empty()) throw UsageError("--atlas after -- and --atlas or --scene before it");
+    b.atlas = *(it + 1);
+    b.forwarded.erase(it, it + 2);
+  }
   {
     CommandLine segment("segment", "");
     SegmentOptions opts;
     SegmentOutputs outputs;
     addSegmentOptions(segment, opts, outputs);
+    // The atlas options of `segment` are checked there; here they are only passed on.
+    for (const char* flag : {"--no-register", "--no-object-register"}) segment.add_flag(flag);
+    segment.add_option("--metric")->check(CLI::IsMember({"auto", "ncc", "mi"}));
     for (const char* own : {"--image", "--scene", "--out", "--help", "-h"})
       if (std::find(b.forwarded.begin(), b.forwarded.end(), own) != b.forwarded.end())
         throw UsageError(std::string("option ") + own + " after --: the batch sets it for each case");
@@ -284,6 +305,10 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   if (!b.scene.empty()) {
     if (!fs::is_regular_file(b.scene, ec)) throw IoError(b.scene, "no such file");
     b.scene = fs::absolute(b.scene).string();
+  }
+  if (!b.atlas.empty()) {
+    loadAtlas(b.atlas);  // a broken atlas stops the batch before any case runs
+    b.atlas = fs::absolute(b.atlas).string();
   }
   checkOutputFolder(b.out);
   b.outAbs = fs::absolute(b.out).lexically_normal();
@@ -308,7 +333,8 @@ int findCases(const BatchSettings& b, std::vector<Case>& cases) {
     std::string problem;
     c.image = caseFile(f, b.imageName, problem);
     if (!b.referenceName.empty()) c.reference = caseFile(f, b.referenceName, c.referenceProblem);
-    c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : b.scene;
+    c.atlas = b.atlas;
+    if (b.atlas.empty()) c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : b.scene;
     c.out = (b.outAbs / c.name).string();
     c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
     if (c.image.empty() && problem.rfind("no ", 0) == 0) {
@@ -317,7 +343,7 @@ int findCases(const BatchSettings& b, std::vector<Case>& cases) {
     } else if (c.image.empty()) {
       c.status = "failed";
       c.message = problem;
-    } else if (c.scene.empty()) {
+    } else if (c.scene.empty() && c.atlas.empty()) {
       c.status = "failed";
       c.message = "no scene: give --scene or put a scene.json in the case folder";
       c.exitCode = 2;
@@ -326,8 +352,9 @@ int findCases(const BatchSettings& b, std::vector<Case>& cases) {
     }
     cases.push_back(c);
   }
-  if (b.scene.empty() && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
-    throw UsageError("missing required option --scene (no case folder has a scene.json of its own)");
+  if (b.scene.empty() && b.atlas.empty() &&
+      std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
+    throw UsageError("missing required option --scene or --atlas (no case folder has a scene.json of its own)");
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
     throw IoError(b.casesDir, "no case: no subfolder holds " + b.imageName);
   return runnable;
@@ -437,6 +464,7 @@ void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argv
   j["command"] = commandLineJson("batch", argvIn);
   j["cases_folder"] = fs::absolute(b.casesDir).string();
   j["scene"] = b.scene;
+  if (!b.atlas.empty()) j["atlas"] = b.atlas;
   j["image_name"] = b.imageName;
   if (!b.referenceName.empty()) j["reference_name"] = b.referenceName;
   j["segment_options"] = b.forwarded;
