@@ -203,14 +203,14 @@ Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress)
 
   Phantom ph;
   ph.generator = "mskseg-multi-phantom";
-  const Grid grid = phantom::coveringGrid(opts.spacing, opts.obliqueDegrees, kFovLo, kFovHi);
+  const Grid grid = phantom::coveringGrid(opts.spacing, opts.obliqueDegrees, kFovLo, kFovHi, opts.pose);
   ph.image = ImageF(grid);
   ph.labels = LabelMap(grid);
   ph.tissues = LabelMap(grid);
   const double imageShare = opts.meshes ? 0.3 : 0.95;
   report(0.02, "image");
-  phantom::renderTissues([&](const Eigen::Vector3d& p) { return classify(segments, p); }, Model::kLipschitz, ph.image,
-                         ph.labels, ph.tissues,
+  phantom::renderTissues([&](const Eigen::Vector3d& p) { return classify(segments, p); }, Model::kLipschitz, opts.pose,
+                         ph.image, ph.labels, ph.tissues,
                          [&](int k) { report(0.02 + 0.8 * imageShare * (k + 1) / grid.dims[2], "image"); });
   phantom::degradeImage(ph.image, opts.seed, opts.noise, opts.bias);
   report(0.02 + imageShare, "image");
@@ -244,7 +244,7 @@ Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress)
       report(base + share * (kMultiPhantomStructures + o + 1), "templates");
     });
     for (size_t o = 0; o < ph.objects.size(); ++o) {
-      ph.objects[o].truth = truth[o];
+      ph.objects[o].truth = phantom::posedMesh(truth[o], opts.pose);
       ph.objects[o].templ = templ[o];
     }
   }

@@ -37,10 +37,10 @@ constexpr ObjectInfo kObjects[] = {
     {"femur", 1, "bone"}, {"quadriceps", 2, "muscle"}, {"hamstrings", 3, "muscle"}, {"adductors", 4, "muscle"}};
 constexpr int kObjectCount = 4;
 
-// The image grid: given spacing and rotation, covering the fixed world box (centred on it).
+// The image grid: given spacing and rotation, covering the fixed world box moved by the pose (centred on it).
 Grid phantomGrid(const PhantomOptions& o) {
   return phantom::coveringGrid(o.spacing, o.obliqueDegrees, Eigen::Vector3d(-kFovHalfXY, -kFovHalfXY, -kFovHalfZ),
-                               Eigen::Vector3d(kFovHalfXY, kFovHalfXY, kFovHalfZ));
+                               Eigen::Vector3d(kFovHalfXY, kFovHalfXY, kFovHalfZ), o.pose);
 }
 
 // Samples object `object` of `model` on an axis-aligned grid of step h around its bounding box. Far from the
@@ -84,6 +84,21 @@ std::vector<TriangleMesh> templateMeshes(double h, int vertices, const std::func
   return it->second;
 }
 
+// The pose as scene.json's provenance records it: its numbers, its centre and its matrix (rows).
+Json phantomPoseJson(const PhantomPose& pose) {
+  auto array3 = [](const Eigen::Vector3d& v) { return Json::array({v[0], v[1], v[2]}); };
+  Json j = Json::object();
+  j["rotationDegrees"] = array3(pose.rotationDegrees);
+  j["translationMm"] = array3(pose.translationMm);
+  j["scale"] = pose.scale;
+  j["centre"] = array3(phantomPoseCentre());
+  const Eigen::Matrix4d m = phantomPoseMatrix(pose);
+  Json rows = Json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back(Json::array({m(r, 0), m(r, 1), m(r, 2), m(r, 3)}));
+  j["matrix"] = rows;
+  return j;
+}
+
 }  // namespace
 
 Phantom makePhantom(const PhantomOptions& opts, const ProgressFn& progress) {
@@ -104,8 +119,8 @@ Phantom makePhantom(const PhantomOptions& opts, const ProgressFn& progress) {
   // Labels and tissues at voxel centres; intensities with partial volume (supersampling where a boundary may
   // cross the voxel, judged by the Lipschitz bound of the implicit functions).
   report(0.02, "image");
-  phantom::renderTissues([&](const Eigen::Vector3d& p) { return model.classify(p); }, Model::kLipschitz, ph.image,
-                         ph.labels, ph.tissues,
+  phantom::renderTissues([&](const Eigen::Vector3d& p) { return model.classify(p); }, Model::kLipschitz, opts.pose,
+                         ph.image, ph.labels, ph.tissues,
                          [&](int k) { report(0.02 + 0.8 * imageShare * (k + 1) / grid.dims[2], "image"); });
   phantom::degradeImage(ph.image, opts.seed, opts.noise, opts.bias);
   report(0.02 + imageShare, "image");
@@ -130,7 +145,7 @@ Phantom makePhantom(const PhantomOptions& opts, const ProgressFn& progress) {
       report(base + share * (kObjectCount + o + 1), "templates");
     });
     for (int o = 0; o < kObjectCount; ++o) {
-      ph.objects[static_cast<size_t>(o)].truth = truth[static_cast<size_t>(o)];
+      ph.objects[static_cast<size_t>(o)].truth = phantom::posedMesh(truth[static_cast<size_t>(o)], opts.pose);
       ph.objects[static_cast<size_t>(o)].templ = templ[static_cast<size_t>(o)];
     }
   }
@@ -195,6 +210,7 @@ void writePhantom(const Phantom& phantom, const PhantomOptions& opts, const std:
   params["seed"] = opts.seed;
   params["spacing"] = array3(opts.spacing);
   params["oblique"] = array3(opts.obliqueDegrees);
+  params["pose"] = phantomPoseJson(opts.pose);
   params["noise"] = opts.noise;
   params["bias"] = opts.bias;
   params["meshVertices"] = opts.meshVertices;

@@ -81,6 +81,7 @@ void checkPhantomOptions(const PhantomOptions& o) {
     if (!std::isfinite(o.spacing[a]) || o.spacing[a] <= 0 || o.spacing[a] > 10)
       throw ParameterError("--spacing", vec(o.spacing), "each voxel size must be in (0, 10] mm");
   if (!o.obliqueDegrees.allFinite()) throw ParameterError("--oblique", vec(o.obliqueDegrees), "angles must be finite");
+  checkPhantomPose(o.pose);
   if (!std::isfinite(o.noise) || o.noise < 0 || o.noise > 1)
     throw ParameterError("--noise", num(o.noise), "must be in [0, 1] (fraction of fat intensity)");
   if (!std::isfinite(o.bias) || o.bias < 0 || o.bias >= 1)
@@ -103,15 +104,18 @@ uint32_t streamSeed(uint32_t seed, uint32_t stream) {
 }
 
 Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& obliqueDegrees, const Eigen::Vector3d& boxLo,
-                  const Eigen::Vector3d& boxHi) {
+                  const Eigen::Vector3d& boxHi, const PhantomPose& pose) {
   Grid g;
   g.spacing = spacing;
   g.direction = Grid::rotationXYZ(obliqueDegrees);
+  const Eigen::Matrix4d p = phantomPoseMatrix(pose);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3d corner((c & 1) ? boxHi[0] : boxLo[0], (c & 2) ? boxHi[1] : boxLo[1],
                                  (c & 4) ? boxHi[2] : boxLo[2]);
-    const Eigen::Vector3d v = g.direction.transpose() * corner;
+    const Eigen::Vector3d posed =
+        pose.isIdentity() ? corner : Eigen::Vector3d(p.topLeftCorner<3, 3>() * corner + p.topRightCorner<3, 1>());
+    const Eigen::Vector3d v = g.direction.transpose() * posed;
     lo = lo.cwiseMin(v);
     hi = hi.cwiseMax(v);
   }
@@ -123,9 +127,21 @@ Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& oblique
   return g;
 }
 
-void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz, ImageF& image,
-                   LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone) {
-  const Grid& grid = labels.grid;
+Grid anatomyGrid(const Grid& image, const PhantomPose& pose) {
+  if (pose.isIdentity()) return image;
+  const Eigen::Matrix4d inverse = phantomPoseInverse(pose);
+  Grid g = image;
+  g.origin = inverse.topLeftCorner<3, 3>() * image.origin + inverse.topRightCorner<3, 1>();
+  g.direction = Grid::rotationXYZ(pose.rotationDegrees).transpose() * image.direction;
+  g.spacing = image.spacing / pose.scale;
+  return g;
+}
+
+void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz,
+                   const PhantomPose& pose, ImageF& image, LabelMap& labels, LabelMap& tissues,
+                   const std::function<void(int k)>& sliceDone) {
+  // Voxel (i, j, k) of the output grid shows the un-posed anatomy at P⁻¹(x_ijk), the voxel (i, j, k) of this grid.
+  const Grid grid = anatomyGrid(labels.grid, pose);
   const Eigen::Matrix3d step = grid.direction * grid.spacing.asDiagonal();
   const double halfDiagonal = 0.5 * grid.spacing.norm();
   Eigen::Vector3i sub;
@@ -154,6 +170,12 @@ void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& clas
       }
     if ((k & 7) == 7 && sliceDone) sliceDone(k);
   }
+}
+
+TriangleMesh posedMesh(const TriangleMesh& truth, const PhantomPose& pose) {
+  TriangleMesh m = truth;
+  if (!pose.isIdentity()) transformMesh(m, phantomPoseMatrix(pose));
+  return m;
 }
 
 void degradeImage(ImageF& image, uint32_t seed, double noise, double bias) {

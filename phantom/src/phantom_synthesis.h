@@ -23,19 +23,30 @@ constexpr double kFatIntensity = 1000;
 uint32_t streamSeed(uint32_t seed, uint32_t stream);
 
 /// The image grid with voxel size `spacing` (mm) rotated by `obliqueDegrees` (about x, y, z) that covers the world box
-/// [lo, hi] (RAS mm), centred on the box.
+/// [lo, hi] (RAS mm) mapped by `pose` (its eight corners), centred on the mapped box.
 Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& obliqueDegrees, const Eigen::Vector3d& lo,
-                  const Eigen::Vector3d& hi);
+                  const Eigen::Vector3d& hi, const PhantomPose& pose = {});
+
+/// The grid P⁻¹(`image`) of the un-posed anatomy for pose P: origin P⁻¹(origin), direction R⁻¹·direction, spacing
+/// spacing / s, so that its voxel (i, j, k) is the point of the un-posed anatomy that P moves to voxel (i, j, k) of
+/// `image`. The identity pose returns `image` bitwise.
+Grid anatomyGrid(const Grid& image, const PhantomPose& pose);
 
 /// Labels, tissue classes and partial-volume intensities (fat = 1) at every voxel of `labels.grid` from a point
-/// classifier: voxels whose centre lies within the classifier's distance bound (× `lipschitz`) of a tissue boundary
-/// are supersampled (about 0.6 mm apart, 2 to 5 samples per axis). `image`, `labels` and `tissues` must share the
-/// grid; `sliceDone(k)` is called after every eighth plane k.
-void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz, ImageF& image,
-                   LabelMap& labels, LabelMap& tissues, const std::function<void(int k)>& sliceDone);
+/// classifier of the un-posed anatomy, moved by `pose`: voxel (i, j, k) holds the anatomy at P⁻¹(x_ijk), evaluated on
+/// anatomyGrid(). Voxels whose (un-posed) centre lies within the classifier's distance bound (× `lipschitz`) of a
+/// tissue boundary are supersampled (about 0.6 mm of un-posed anatomy apart, 2 to 5 samples per axis). `image`,
+/// `labels` and `tissues` must share the grid; `sliceDone(k)` is called after every eighth plane k.
+void renderTissues(const std::function<PointClass(const Eigen::Vector3d&)>& classify, double lipschitz,
+                   const PhantomPose& pose, ImageF& image, LabelMap& labels, LabelMap& tissues,
+                   const std::function<void(int k)>& sliceDone);
+
+/// `truth` mapped by the pose P (an exact copy for the identity pose).
+TriangleMesh posedMesh(const TriangleMesh& truth, const PhantomPose& pose);
 
 /// Scanner degradation of a rendered image (fat = 1) in place: Gaussian blur of σ = 0.5 voxel, a smooth multiplicative
-/// bias field 1 + bias·B(p) (|B| ≤ 1, wavelengths 250–450 mm), Rician noise of σ = `noise` (fraction of fat), then
+/// bias field 1 + bias·B(p) (|B| ≤ 1, wavelengths 250–450 mm, p the world position of the voxel: the field is the
+/// scanner's and does not move with a posed anatomy), Rician noise of σ = `noise` (fraction of fat), then
 /// scaling so that fat ≈ kFatIntensity. Bias and noise are drawn from streams 2 and 3 of `seed`.
 void degradeImage(ImageF& image, uint32_t seed, double noise, double bias);
 

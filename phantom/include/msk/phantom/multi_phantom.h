@@ -16,8 +16,9 @@ constexpr int kMultiPhantomStructures = 24;
 /// by five muscles (labels 6s+2..6s+6) that touch the bone (across a 1 mm periosteal fat gap) and their two
 /// neighbours, separated by fat septa each missing over one stretch; names are prefixed "r_" / "l_". Touching pairs
 /// are listed in PhantomObject::touching (40 pairs). Templates are the mean anatomy (seed-independent); truth,
-/// image, noise and bias vary with opts.seed, deterministically. Uses every PhantomOptions field (the field of view,
-/// 290 × 150 × 340 mm, is fixed); throws ParameterError for invalid options. Write it with writePhantom().
+/// image, noise and bias vary with opts.seed, deterministically. Uses every PhantomOptions field (the un-posed field
+/// of view, 290 × 150 × 340 mm, is fixed; opts.pose moves the anatomy and the field of view as in makePhantom());
+/// throws ParameterError for invalid options. Write it with writePhantom().
 Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress = {});
 
 }  // namespace msk

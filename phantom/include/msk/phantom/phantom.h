@@ -9,6 +9,7 @@
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/volume.h"
+#include "msk/phantom/phantom_pose.h"
 #include "msk/segmentation/scene.h"
 
 namespace msk {
@@ -18,6 +19,7 @@ struct PhantomOptions {
   uint32_t seed = 1;                                         ///< anatomy and noise vary with it
   Eigen::Vector3d spacing = Eigen::Vector3d(1.2, 1.2, 3.0);  ///< mm
   Eigen::Vector3d obliqueDegrees = Eigen::Vector3d::Zero();  ///< grid rotation about x, y, z
+  PhantomPose pose;                                          ///< moves the anatomy, not the templates (default: none)
   double noise = 0.03;                                       ///< Rician noise sigma, fraction of fat intensity
   double bias = 0.15;                                        ///< bias field amplitude (0 = none, fraction)
   bool meshes = true;          ///< compute truth and template meshes (false: image, labels and tissues only; faster)
@@ -26,8 +28,8 @@ struct PhantomOptions {
   MeshSpace meshSpace = MeshSpace::LPS;  ///< space the mesh files are written in (tagged)
 };
 
-/// Throws ParameterError naming the command-line option (--spacing, --oblique, --noise, --bias, --vertices) of the
-/// first PhantomOptions field out of range.
+/// Throws ParameterError naming the command-line option (--spacing, --oblique, --pose, --noise, --bias, --vertices) of
+/// the first PhantomOptions field out of range.
 void checkPhantomOptions(const PhantomOptions& opts);
 
 /// Tissue classes of the phantom image (values of Phantom::tissues).
@@ -46,8 +48,8 @@ struct PhantomObject {
   std::string name;                   ///< "femur", "quadriceps", ...
   int32_t label = 0;                  ///< value in the label map
   std::string kind;                   ///< "bone" | "muscle" | "generic"
-  TriangleMesh truth;                 ///< ground-truth surface for this seed, RAS mm
-  TriangleMesh templ;                 ///< mean-anatomy surface (seed-independent), RAS mm
+  TriangleMesh truth;                 ///< ground-truth surface for this seed, RAS mm, posed (PhantomOptions::pose)
+  TriangleMesh templ;                 ///< mean-anatomy surface (seed-independent, never posed), RAS mm
   std::vector<std::string> touching;  ///< names of the structures this one touches (collision pairs)
 };
 
@@ -63,6 +65,11 @@ struct Phantom {
 /// Generates a phantom in memory: a right thigh in RAS mm (+x lateral, +y anterior, +z superior) with
 /// femur (label 1, "bone"), quadriceps (2), hamstrings (3) and adductors (4) ("muscle"). Deterministic for a seed.
 /// Image intensities are scaled so that fat ≈ 1000. Throws ParameterError for invalid options.
+/// With a pose P (opts.pose) the anatomy is moved by P: voxel centre x of the image, labels and tissues shows the
+/// un-posed anatomy at P⁻¹(x) (evaluated there exactly, no resampling), truth meshes are mapped by P, templates stay
+/// un-posed. The field of view is the un-posed one (the world box that holds the limb for every seed) mapped by P and
+/// covered by a grid of opts.spacing and opts.obliqueDegrees; the bias field stays fixed in world space (the
+/// scanner's). The identity pose gives bitwise the phantom without a pose.
 Phantom makePhantom(const PhantomOptions& opts, const ProgressFn& progress = {});
 
 /// The scene a phantom declares: its templates as objects (template paths `folder`/template_<name>.vtk, the meshes in
