@@ -1,5 +1,7 @@
 // mskseg phantom: a synthetic T1-weighted thigh MRI (or both thighs and lower legs) with exact ground truth.
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "commands.h"
 #include "msk/imaging/mesh_io.h"
@@ -7,6 +9,24 @@
 #include "msk/phantom/phantom.h"
 
 namespace msk::cli {
+
+namespace {
+
+// The numbers of --pose (ax, ay, az, tx, ty, tz[, s]) as a pose; ParameterError for any other count.
+PhantomPose parsePose(const std::vector<double>& v) {
+  if (v.size() != 6 && v.size() != 7) {
+    std::string value;
+    for (size_t i = 0; i < v.size(); ++i) value += (i ? "," : "") + std::to_string(v[i]);
+    throw ParameterError("--pose", value, "needs 6 or 7 numbers: ax,ay,az,tx,ty,tz[,scale]");
+  }
+  PhantomPose p;
+  p.rotationDegrees = Eigen::Vector3d(v[0], v[1], v[2]);
+  p.translationMm = Eigen::Vector3d(v[3], v[4], v[5]);
+  if (v.size() == 7) p.scale = v[6];
+  return p;
+}
+
+}  // namespace
 
 int cmdPhantom(const std::vector<std::string>& argv) {
   CommandLine app(
@@ -21,6 +41,15 @@ int cmdPhantom(const std::vector<std::string>& argv) {
   app.add_option("--out", out, "output folder (appears whole or not at all)")->required();
   addVec3(app, "--spacing", opts.spacing, "voxel size in mm along i,j,k (default 1.2,1.2,3)");
   addVec3(app, "--oblique", opts.obliqueDegrees, "grid rotation in degrees about x,y,z (default 0,0,0)");
+  std::vector<double> pose;
+  app.add_option("--pose", pose,
+                 "moves the anatomy (image, labels, truth meshes; not the templates, which stay at the mean anatomy) "
+                 "by x' = t + s·R·x, RAS mm: R rotates by ax, ay, az degrees about the world x, then y, then z axes "
+                 "(R = Rz·Ry·Rx, as --oblique), about the centre of the un-posed field of view, the RAS origin; "
+                 "t = (tx, ty, tz) mm; s the scale (default 1, in [0.5, 2]). The field of view grows and moves to "
+                 "cover the posed anatomy (default 0,0,0,0,0,0)")
+      ->delimiter(',')
+      ->type_name("AX,AY,AZ,TX,TY,TZ[,S]");
   addNumber(app, "--noise", opts.noise, "Rician noise sigma, fraction of fat (default 0.03)");
   addNumber(app, "--bias", opts.bias, "multiplicative bias field amplitude (default 0.15)");
   app.add_option("--vertices", opts.meshVertices, "vertices of each truth and template mesh (default 3000)");
@@ -29,6 +58,7 @@ int cmdPhantom(const std::vector<std::string>& argv) {
                  "4: one right thigh (femur, quadriceps, hamstrings, adductors; default); 24: both thighs and both "
                  "lower legs, each a bone wrapped by five muscles");
   if (!parseArgs(app, argv)) return 0;
+  if (!pose.empty()) opts.pose = parsePose(pose);
   if (structures != 4 && structures != kMultiPhantomStructures)
     throw ParameterError(
         "--structures", std::to_string(structures),

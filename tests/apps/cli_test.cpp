@@ -198,14 +198,21 @@ TEST(Cli, PhantomRasterizeEvalPipeline) {
 
 TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
   ScratchDir dir;
-  for (auto args : std::vector<std::vector<std::string>>{
-           {"--spacing", "0,1,1"}, {"--noise", "-1"}, {"--bias", "5"}, {"--spacing", "1,1"}}) {
+  for (auto args : std::vector<std::vector<std::string>>{{"--spacing", "0,1,1"},
+                                                         {"--noise", "-1"},
+                                                         {"--bias", "5"},
+                                                         {"--spacing", "1,1"},
+                                                         {"--pose", "1,2"},
+                                                         {"--pose", "0,0,200,0,0,0"},
+                                                         {"--pose", "0,0,0,0,0,0,3"},
+                                                         {"--pose", "0,0,0,0,0,0,1,1"}}) {
     std::vector<std::string> cmd = {"phantom", "--out", dir.file("p")};
     cmd.insert(cmd.end(), args.begin(), args.end());
     CliResult r = runCli(cmd);
     EXPECT_EQ(r.exitCode, 2) << args[0] << ": " << r.err;
     EXPECT_EQ(lineCount(r.err), 1) << r.err;
     EXPECT_TRUE(dir.list().empty()) << "partial output after " << args[0];
+    if (args[0] == "--pose") EXPECT_NE(r.err.find("--pose"), std::string::npos) << r.err;
   }
 }
 
