@@ -212,7 +212,9 @@ TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
     EXPECT_EQ(r.exitCode, 2) << args[0] << ": " << r.err;
     EXPECT_EQ(lineCount(r.err), 1) << r.err;
     EXPECT_TRUE(dir.list().empty()) << "partial output after " << args[0];
-    if (args[0] == "--pose") EXPECT_NE(r.err.find("--pose"), std::string::npos) << r.err;
+    if (args[0] == "--pose") {
+      EXPECT_NE(r.err.find("--pose"), std::string::npos) << r.err;
+    }
   }
 }
 
