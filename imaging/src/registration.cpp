@@ -30,6 +30,12 @@ constexpr int kSearchKeep = 4, kSearchIterations = 40;
 constexpr double kSearchStepDegrees = 15;
 /// Samples per candidate during the search (a subset of the coarsest level's).
 constexpr int kSearchSamples = 3000;
+/// Translation scan of the search: the reference's centre tried on a grid over the subject's field of view with steps
+/// of at least kScanStepMm (and twice the coarsest level's spacing), at most kScanMaxCandidates places; the best
+/// kScanKeep places at least two steps apart join the rotation search.
+constexpr double kScanStepMm = 12;
+constexpr int kScanMaxCandidates = 8000, kScanKeep = 3;
+constexpr double kScanMinOverlap = 0.5;
 /// Finest default level (mm) when both images have finer voxels; levels per default pyramid at most.
 constexpr double kFinestDefaultMm = 2.0;
 constexpr int kMaxDefaultLevels = 3;
@@ -62,14 +68,16 @@ void checkOptions(const RegistrationOptions& o) {
 double meanVoxelMm(const Grid& g) { return std::cbrt(g.spacing.prod()); }
 
 /// Default pyramid (coarse → fine): the finest level max(2 mm, the coarser mean voxel of both images), doubled while
-/// the next level keeps ≥ 10 samples across the reference's mean extent, at most kMaxDefaultLevels.
+/// the next level keeps ≥ 10 samples across the reference's mean extent and ≥ 6 across its smallest (a slab of a few
+/// slices keeps its finer levels), at most kMaxDefaultLevels.
 std::vector<double> defaultLevels(const Grid& reference, const Grid& subject) {
   const double finest = std::max({kFinestDefaultMm, meanVoxelMm(reference), meanVoxelMm(subject)});
   const Eigen::Vector3d extent =
       (reference.dims.cast<double>() - Eigen::Vector3d::Ones()).cwiseProduct(reference.spacing);
   const double meanExtent = extent.mean();
   std::vector<double> levels{finest};
-  while (static_cast<int>(levels.size()) < kMaxDefaultLevels && 2 * levels.back() <= meanExtent / 10)
+  while (static_cast<int>(levels.size()) < kMaxDefaultLevels && 2 * levels.back() <= meanExtent / 10 &&
+         2 * levels.back() <= extent.minCoeff() / 6)
     levels.push_back(2 * levels.back());
   std::reverse(levels.begin(), levels.end());
   return levels;
@@ -96,6 +104,7 @@ struct Pyramid {
   reg::MetricEvaluator searchEvaluator;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the reference's centre (mm): the update's pivot
   Eigen::Vector3d referenceCentroid = Eigen::Vector3d::Zero(), subjectCentroid = Eigen::Vector3d::Zero();
+  Eigen::Vector3d subjectLo = Eigen::Vector3d::Zero(), subjectHi = Eigen::Vector3d::Zero();  // its world box (mm)
   double radius = 1;  // RMS distance of the coarsest samples from the centre (mm)
 };
 
@@ -108,6 +117,9 @@ void buildPyramid(const ImageF& reference, const ImageF& subject, const Registra
   p.centre = g.toWorld(0.5 * (g.dims - Eigen::Vector3i::Ones()).cast<double>());
   p.referenceCentroid = reg::brightCentroid(ref.front());
   p.subjectCentroid = reg::brightCentroid(sub.front());
+  const auto subjectBox = subject.grid.worldBounds();
+  p.subjectLo = subjectBox[0];
+  p.subjectHi = subjectBox[1];
   const size_t n = p.spacing.size();
   p.samples.resize(n), p.subject.resize(n), p.evaluator.resize(n);
   for (size_t l = 0; l < n; ++l) {
@@ -204,11 +216,43 @@ Eigen::Matrix4d transformThrough(const Eigen::Matrix3d& L, const Eigen::Vector3d
   return T;
 }
 
+/// Where the reference's centre may go: `start`'s linear part tried with the centre on a grid over the subject's field
+/// of view (the fields of view of an atlas and a subject may differ a lot, so that neither `start` nor the intensity
+/// centroids place it); returns the best kScanKeep places, at least two grid steps apart.
+std::vector<Eigen::Vector3d> scanTranslations(Pyramid& p, const Eigen::Matrix4d& start, double overlapAtStart) {
+  const Eigen::Vector3d extent = p.subjectHi - p.subjectLo;
+  double step = std::max(kScanStepMm, 2 * p.spacing.front());
+  auto count = [&](double h) { return ((extent / h).array().floor() + 1).prod(); };
+  while (count(step) > kScanMaxCandidates) step *= 1.25;
+  const Eigen::Vector3i n = ((extent / step).array().floor() + 1).cast<int>();
+  const Eigen::Matrix3d L = start.topLeftCorner<3, 3>();
+  std::vector<std::pair<double, Eigen::Vector3d>> scored;
+  for (int k = 0; k < n.z(); ++k)
+    for (int j = 0; j < n.y(); ++j)
+      for (int i = 0; i < n.x(); ++i) {
+        const Eigen::Vector3d y = p.subjectLo + step * Eigen::Vector3d(i, j, k) +
+                                  0.5 * (extent - step * (n.cast<double>() - Eigen::Vector3d::Ones()));
+        const reg::MetricValue v =
+            p.searchEvaluator.evaluate(transformThrough(L, p.centre, y), PriorTransform::Rigid, false);
+        // A place where less than half the reference (or less than at the start) lies in the subject is not one:
+        // few samples match by chance, mutual information above all.
+        if (v.overlap >= std::min(kScanMinOverlap, overlapAtStart)) scored.emplace_back(score(v, overlapAtStart), y);
+      }
+  std::stable_sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& [sc, y] : scored) {
+    if (static_cast<int>(out.size()) == kScanKeep) break;
+    if (std::all_of(out.begin(), out.end(), [&](const Eigen::Vector3d& o) { return (o - y).norm() >= 2 * step; }))
+      out.push_back(y);
+  }
+  return out;
+}
+
 /// Candidates of the coarse search: rotations on a grid within ±searchDegrees about each axis (steps ≤ 15°) and
 /// scales 1, 1 ± searchScale applied to `start` on the reference side, each with the centre mapped where `start`
-/// maps it and with the intensity centroids aligned.
+/// maps it, with the intensity centroids aligned, and at each place of `anchors`.
 std::vector<Eigen::Matrix4d> searchCandidates(const Eigen::Matrix4d& start, const RegistrationOptions& opts,
-                                              const Pyramid& p) {
+                                              const Pyramid& p, const std::vector<Eigen::Vector3d>& anchors) {
   const int perSide = static_cast<int>(std::ceil(opts.searchDegrees / kSearchStepDegrees - 1e-9));
   const double stepDeg = opts.searchDegrees / perSide;
   std::vector<double> scales{1.0};
@@ -226,6 +270,8 @@ std::vector<Eigen::Matrix4d> searchCandidates(const Eigen::Matrix4d& start, cons
           const Eigen::Vector3d centroidAligned = p.subjectCentroid - L * (p.referenceCentroid - p.centre);
           if ((centroidAligned - atStart).norm() > 0.5 * p.spacing.front())
             out.push_back(transformThrough(L, p.centre, centroidAligned));
+          for (const Eigen::Vector3d& y : anchors)
+            if ((y - atStart).norm() > 0.5 * p.spacing.front()) out.push_back(transformThrough(L, p.centre, y));
         }
   return out;
 }
@@ -236,7 +282,8 @@ StageOutcome search(Pyramid& p, const Eigen::Matrix4d& start, const Registration
   const PriorTransform model = opts.model == PriorTransform::Rigid ? PriorTransform::Rigid : PriorTransform::Similarity;
   const double overlapAtStart = p.searchEvaluator.evaluate(start, model, false).overlap;
   std::vector<std::pair<double, Eigen::Matrix4d>> scored;
-  for (const Eigen::Matrix4d& T : searchCandidates(start, opts, p))
+  const std::vector<Eigen::Vector3d> anchors = scanTranslations(p, start, overlapAtStart);
+  for (const Eigen::Matrix4d& T : searchCandidates(start, opts, p, anchors))
     scored.emplace_back(score(p.searchEvaluator.evaluate(T, model, false), overlapAtStart), T);
   const size_t keep = std::min<size_t>(kSearchKeep, scored.size());
   std::partial_sort(scored.begin(), scored.begin() + keep, scored.end(),
