@@ -9,6 +9,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
+#include "msk/imaging/transform_io.h"
 #include "msk/segmentation/atlas.h"
 #include "msk/segmentation/qc_pictures.h"
 #include "msk/segmentation/scene.h"
@@ -69,6 +70,11 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
   writeJsonFile(dir + "/report.json", report);
 }
 
+/// The atlas's global placement as a 3D Slicer transform (applied to the atlas in Slicer, it moves it onto the image).
+void writePlacementTransform(const std::string& dir, const Placement& placement) {
+  writeSlicerTransform(dir + "/placement.tfm", placement.global);
+}
+
 /// The run's summary on stdout.
 void printSummary(const SegmentationResult& res, const Scene& scene, const std::string& out) {
   std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << "\n";
@@ -96,7 +102,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal, its "
       "shape memory and a global shape prior; objects evolve together, and the scene's collision pairs keep their "
       "surfaces apart.");
-  std::string imagePath, scenePath, atlasDir, out, metric = "auto";
+  std::string imagePath, scenePath, atlasDir, out, metric = "auto", initTransform;
   PlacementOptions placing;
   bool noRegister = false, noObjectRegister = false;
   app.add_option("--image", imagePath, "the image (NIfTI)")->required();
@@ -108,6 +114,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
                  "registration metric with --atlas: auto (ncc when the image's modality is the atlas's, else mi), "
                  "ncc or mi")
       ->check(CLI::IsMember({"auto", "ncc", "mi"}));
+  app.add_option("--init-transform", initTransform,
+                 "with --atlas: the start of the placement, atlas -> subject: a 4x4 RAS matrix (text rows or JSON "
+                 "{\"matrix\": ...}) or a 3D Slicer / ITK .tfm (LPS; the transform that moves the atlas onto the "
+                 "subject in Slicer); the registration starts there without its search");
   app.add_flag("--no-register", noRegister,
                "with --atlas: no registration at all; the atlas stays where --init-transform (or its own world) puts "
                "it");
@@ -120,11 +130,13 @@ int cmdSegment(const std::vector<std::string>& argv) {
   app.footer(
       "Writes into OUT: <name>.vtk per object (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object; "
       "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine), "
-      "report.json (every parameter, version, timings, steps, volumes) and qc/<name>_{axial,coronal,sagittal}.png.");
+      "report.json (every parameter, version, timings, steps, volumes; with --atlas the placement: transforms, "
+      "registration stages and metrics, each object's move) and qc/<name>_{axial,coronal,sagittal}.png; with --atlas "
+      "also placement.tfm, the global placement as a 3D Slicer transform.");
   if (!parseArgs(app, argv)) return 0;
-  if (!sceneOpt->count() && !atlasOpt->count()) throw ParameterError("--scene", "", "give --scene or --atlas");
-  if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto"))
-    throw ParameterError("--atlas", "", "--metric, --no-register and --no-object-register need --atlas");
+  if (!sceneOpt->count() && !atlasOpt->count()) throw UsageError("give --scene or --atlas");
+  if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto" || !initTransform.empty()))
+    throw UsageError("--metric, --init-transform, --no-register and --no-object-register need --atlas");
   checkSegmentOptions(opts);
   checkOutputFolder(out);
 
@@ -133,6 +145,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   Scene scene;
   std::optional<Placement> placement;
   if (atlasOpt->count()) {
+    if (!initTransform.empty()) placing.start = readLinearTransform(initTransform);
     const Atlas atlas = loadAtlas(atlasDir);
     placing.registration = !noRegister;
     placing.perObject = !noObjectRegister;
@@ -152,14 +165,17 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (placement) {
     report["atlas"] = fs::absolute(atlasDir).string();
     report["placement"] = placementJson(*placement);
+    if (!initTransform.empty()) report["placement"]["init_transform"] = fs::absolute(initTransform).string();
   } else {
     report["scene"] = fs::absolute(scenePath).string();
   }
   report["image_info"] = imageJson(image, info);
   report["mesh_space"] = meshSpaceName(outputs.space);
   report.update(segmentReport(res, scene, opts));
-  writeFolderAtomically(out,
-                        [&](const std::string& dir) { writeOutputs(dir, res, scene, image, info, outputs, report); });
+  writeFolderAtomically(out, [&](const std::string& dir) {
+    writeOutputs(dir, res, scene, image, info, outputs, report);
+    if (placement) writePlacementTransform(dir, *placement);
+  });
   printSummary(res, scene, out);
   return 0;
 }
