@@ -7,6 +7,7 @@
 #include <string>
 
 #include "msk/core/error.h"
+#include "msk/segmentation/quality_check.h"
 #include "msk/segmentation/surface_quality.h"
 #include "segment_stages.h"
 
@@ -145,9 +146,18 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     for (ObjectResult& o : res.objects) o.selfIntersections = selfIntersections(o.mesh);
     res.secondsPerStage["surface-check"] = since(tq);
   }
+  rasteriseLabels(res, scene, inside, image.grid);
+  const auto tq = Clock::now();
+  const ImageFeatures& finest = features.at(res.settings.sigmaMm.back());
+  const double noise = imageNoiseSigma(finest.smoothed);
+  for (size_t i = 0; i < res.objects.size(); ++i) {
+    ObjectResult& o = res.objects[i];
+    o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise);
+    res.status = worseStatus(res.status, o.quality.status);
+  }
+  res.secondsPerStage["quality-check"] = since(tq);
   res.secondsPerStage["features"] = featureSeconds;
   res.featureScalesBuilt = features.built();
-  rasteriseLabels(res, scene, inside, image.grid);
   res.seconds = since(t0);
   if (progress) progress(1.0, "done");
   return res;

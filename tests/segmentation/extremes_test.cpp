@@ -65,6 +65,7 @@ TEST(SegmenterExtremes, ConstantImageLeavesTheTemplateInPlace) {
   const msk::SegmentOptions o = quickOptions(2, 20);
   const msk::SegmentationResult res = msk::segmentScene(img, ballScene(msk::makeIcosphere(10.0, 3)), o);
   expectSane(res, o, 0.5, "constant image");
+  EXPECT_EQ(res.status, msk::QualityStatus::Failed) << "no edge: the quality check says so";
 }
 
 // Pure noise (uniform, no structure): the template may jitter but stays finite, closed and near where it started.
@@ -80,6 +81,7 @@ TEST(SegmenterExtremes, PureNoiseImageStaysBounded) {
   const double r = meanRadius(res.objects[0].mesh, Eigen::Vector3d::Zero());
   EXPECT_GT(r, 6.0);
   EXPECT_LT(r, 14.0);
+  EXPECT_EQ(res.status, msk::QualityStatus::Failed) << "no edge stands out of the noise: the quality check says so";
 }
 
 // A NaN (or Inf) voxel is refused before any work with an Error that names the problem.

@@ -12,6 +12,7 @@
 #include "msk/core/volume_simplex.h"
 #include "msk/imaging/volume.h"
 #include "msk/segmentation/image_forces.h"
+#include "msk/segmentation/quality_check.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_options.h"
 
@@ -69,6 +70,7 @@ struct ObjectResult {
   size_t selfIntersections = 0;
   size_t foldsFound = 0;     ///< crossing face pairs unfoldSurface() found, summed over its calls
   int unfoldedVertices = 0;  ///< vertices it moved, summed over its calls
+  ObjectQuality quality;     ///< figures of the final surface in the image and the status they give
 };
 
 /// The result of a scene.
@@ -80,7 +82,7 @@ struct SegmentationResult {
   std::vector<AxisFirstReport> axisFirst;        ///< per object that ran the axis-first stage
   double seconds = 0;                            ///< whole run
   /// Seconds per stage: "features", "evolution" (with "axis-first" a part of it), "collision-detection",
-  /// "separation", "surface-check", "rasterise".
+  /// "separation", "surface-check", "rasterise", "quality-check".
   std::map<std::string, double> secondsPerStage;
   int featureScalesBuilt = 0;  ///< distinct image scales computed (each once)
   int collisionSetsBuilt = 0;  ///< directed vertex–surface collision sets built over all levels (0 without pairs)
@@ -95,6 +97,7 @@ struct SegmentationResult {
   /// Voxel centres left inside both surfaces of a declared pair by the separation (edges crossing between its
   /// samples) that were handed to one of the two (its closest triangle moved inward past the centre)
   long overlapVoxelsRepaired = 0;
+  QualityStatus status = QualityStatus::Ok;  ///< the worst object's quality status
 };
 
 /// Segments every object of the scene in `image` (RAS mm). Throws ParameterError for options out of range
