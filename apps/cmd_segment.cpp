@@ -75,9 +75,26 @@ void writePlacementTransform(const std::string& dir, const Placement& placement)
   writeSlicerTransform(dir + "/placement.tfm", placement.global);
 }
 
+/// A warning for every object whose quality is not ok (its reasons), and one for the case.
+void warnQuality(const SegmentationResult& res) {
+  if (res.status == QualityStatus::Ok) return;
+  int flagged = 0;
+  for (const ObjectResult& o : res.objects) {
+    if (o.quality.status == QualityStatus::Ok) continue;
+    ++flagged;
+    std::string why;
+    for (const std::string& r : o.quality.reasons) why += (why.empty() ? "" : "; ") + r;
+    log::warn(o.name + ": segmentation " + qualityStatusName(o.quality.status) + " (" + why + ")");
+  }
+  log::warn(std::string("case: segmentation ") + qualityStatusName(res.status) + " (" + std::to_string(flagged) +
+            " of " + std::to_string(res.objects.size()) +
+            " object(s) not ok; the outputs are written, see report.json objects[].quality)");
+}
+
 /// The run's summary on stdout.
 void printSummary(const SegmentationResult& res, const Scene& scene, const std::string& out) {
-  std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << "\n";
+  std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << ", status "
+            << qualityStatusName(res.status) << "\n";
   if (scene.objects.size() > 1)
     std::cout << "  voxels inside two objects: " << res.overlapVoxels
               << (res.collisionSetsBuilt > 0 ? "" : " (no collision response: no pairs declared or --no-collisions)")
@@ -90,7 +107,7 @@ void printSummary(const SegmentationResult& res, const Scene& scene, const std::
     for (const auto& l : o.levels) steps += l.steps;
     std::cout << "  " << o.name << ": " << steps << " steps, " << o.seconds << " s, volume " << o.volumeMm3 / 1000.0
               << " mL (template " << o.templateVolumeMm3 / 1000.0 << " mL), mean residual " << o.meanImageResidualMm
-              << " mm\n";
+              << " mm, " << qualityStatusName(o.quality.status) << "\n";
   }
 }
 
@@ -176,6 +193,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     writeOutputs(dir, res, scene, image, info, outputs, report);
     if (placement) writePlacementTransform(dir, *placement);
   });
+  warnQuality(res);
   printSummary(res, scene, out);
   return 0;
 }

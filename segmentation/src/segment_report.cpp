@@ -129,6 +129,17 @@ Json settingsJson(const SegmentOptions& o, const SegmentationResult& result) {
   return j;
 }
 
+Json qualityJson(const ObjectQuality& q) {
+  Json j;
+  j["status"] = qualityStatusName(q.status);
+  j["in_image_share"] = q.inImageShare;
+  j["edge_share"] = q.edgeShare;
+  j["contrast_to_noise"] = q.contrastToNoise;
+  j["contrast_judged"] = q.contrastJudged;
+  j["reasons"] = q.reasons;
+  return j;
+}
+
 Json objectJson(const ObjectResult& o) {
   Json j;
   j["name"] = o.name;
@@ -176,11 +187,13 @@ Json objectJson(const ObjectResult& o) {
   Json fam = Json::object();
   for (const auto& kv : o.secondsPerFamily) fam[kv.first] = kv.second;
   j["seconds_per_constraint_family"] = fam;
+  j["quality"] = qualityJson(o.quality);
   return j;
 }
 
 Json segmentReport(const SegmentationResult& res, const Scene& scene, const SegmentOptions& opts) {
   Json report;
+  report["status"] = qualityStatusName(res.status);
   report["parameters"] = settingsJson(opts, res);
   Json timing;
   timing["total_s"] = res.seconds;

@@ -65,12 +65,44 @@ TEST(SegmentCli, WritesMeshesLabelsReportAndPictures) {
   EXPECT_GT(rep.at("objects")[0].at("steps").get<int>(), 0);
   EXPECT_GT(rep.at("objects")[0].at("volume_mm3").get<double>(), 50000.0);
   EXPECT_TRUE(msk::jsonMember(rep.at("objects")[0].at("seconds_per_constraint_family"), "simplex-internal"));
+  EXPECT_EQ(rep.at("status").get<std::string>(), "ok");
+  EXPECT_EQ(rep.at("objects")[0].at("quality").at("status").get<std::string>(), "ok");
+  EXPECT_GT(rep.at("objects")[0].at("quality").at("contrast_to_noise").get<double>(), 0.0);
+  EXPECT_NE(r.out.find("status ok"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("segmentation"), std::string::npos) << "no quality warning for a good run:\n" << r.err;
   // The label map sits on the input grid with the input's affine, exactly.
   msk::Grid in, lab;
   const msk::NiftiInfo a = msk::readNiftiHeader(kSample + "image.nii.gz", &in);
   const msk::NiftiInfo b = msk::readNiftiHeader(out + "/labels.nii.gz", &lab);
   EXPECT_TRUE(in.sameGeometry(lab, 0.0));
   EXPECT_EQ(a.sform, b.sform);
+}
+
+// A segmentation that cannot have worked (a constant image: no boundary anywhere) still writes its outputs and exits
+// 0, but report.json says "failed" per object (with the reasons) and for the case, stderr has a warning line for the
+// object and one for the case, and the summary on stdout says so.
+TEST(SegmentCli, FailedSegmentationIsReportedAndWarnedButWritten) {
+  msk::test::ScratchDir dir;
+  msk::NiftiInfo info;
+  msk::ImageF image = msk::readNifti<float>(kSample + "image.nii.gz", &info);
+  std::fill(image.data.begin(), image.data.end(), 300.f);
+  const std::string constant = dir.file("constant.nii.gz"), out = dir.file("out");
+  msk::NiftiWriteOptions wo;
+  wo.like = &info;
+  msk::writeNifti(constant, image, msk::DataType::Int16, wo);
+  const auto r = runCli(
+      {"segment", "--image", constant, "--scene", femurScene(dir), "--out", out, "--quality", "fast", "--no-qc"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out + "/femur.vtk"));
+  const msk::Json rep = msk::readJsonFile(out + "/report.json");
+  EXPECT_EQ(rep.at("status").get<std::string>(), "failed");
+  const msk::Json& q = rep.at("objects")[0].at("quality");
+  EXPECT_EQ(q.at("status").get<std::string>(), "failed");
+  ASSERT_FALSE(q.at("reasons").empty());
+  EXPECT_NE(q.at("reasons")[0].get<std::string>().find("edge"), std::string::npos) << q.dump();
+  EXPECT_NE(r.err.find("femur: segmentation failed ("), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("case: segmentation failed"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("status failed"), std::string::npos) << r.out;
 }
 
 // A muscle's template is remeshed before the evolution (its output then has about the template's vertex count on
