@@ -61,6 +61,7 @@ struct Case {
   double worstResidualMm = std::nan("");       ///< largest mean image residual of an object
   double worstVolumeChangePct = std::nan("");  ///< largest |volume / template volume − 1| of an object, %
   double overlapVoxels = std::nan("");         ///< voxels inside two objects
+  std::string quality;  ///< the report's status from the image alone: ok | doubtful | failed (empty: not read)
 };
 
 std::string csvField(const std::string& s) {
@@ -128,6 +129,7 @@ void readResults(Case& c, bool scored) {
     c.worstResidualMm = residual;
     c.worstVolumeChangePct = change;
     c.overlapVoxels = report.at("overlap_voxels").get<double>();
+    c.quality = report.at("status").get<std::string>();
   } catch (const std::exception& e) {
     c.message = std::string("report not read: ") + e.what();
   }
@@ -167,14 +169,14 @@ void readResults(Case& c, bool scored) {
 void writeSummary(const std::string& out, const std::vector<Case>& cases, bool scored) {
   writeAtomically(out + "/summary.csv", [&](const std::string& tmp) {
     std::ofstream f(tmp);
-    f << "case,status,exit_code,seconds,peak_rss_mib,max_residual_mm,max_volume_change_pct,overlap_voxels,"
+    f << "case,status,quality,exit_code,seconds,peak_rss_mib,max_residual_mm,max_volume_change_pct,overlap_voxels,"
          "objects_scored,mean_dice,min_dice,message\n";
     for (const Case& c : cases) {
-      f << csvField(c.name) << ',' << c.status << ',' << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ','
-        << (c.seconds > 0 ? fixed(c.seconds, 2) : "") << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ','
-        << orEmpty(c.worstResidualMm, 3) << ',' << orEmpty(c.worstVolumeChangePct, 2) << ','
-        << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ',' << orEmpty(c.meanDice, 4) << ','
-        << orEmpty(c.minDice, 4) << ',' << csvField(c.message) << '\n';
+      f << csvField(c.name) << ',' << c.status << ',' << c.quality << ','
+        << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ',' << (c.seconds > 0 ? fixed(c.seconds, 2) : "")
+        << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ',' << orEmpty(c.worstResidualMm, 3) << ','
+        << orEmpty(c.worstVolumeChangePct, 2) << ',' << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ','
+        << orEmpty(c.meanDice, 4) << ',' << orEmpty(c.minDice, 4) << ',' << csvField(c.message) << '\n';
     }
     if (!f.flush()) throw IoError(out + "/summary.csv", "cannot write");
   });
@@ -267,7 +269,9 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   app.add_flag("--redo", b.redo, "run the cases already done again");
   app.footer(
       "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs). "
-      "Writes OUT/summary.csv (one row per case: status, exit code, seconds, peak memory, the checks that need no "
+      "Writes OUT/summary.csv (one row per case: status, quality (ok, doubtful or failed: the segmentation's status "
+      "judged from the image alone, report.json's \"status\"), exit code, seconds, peak memory, the checks that need "
+      "no "
       "reference: largest mean image residual and volume change of an object, voxels inside two objects; Dice; "
       "message), rewritten as each case ends; OUT/metrics.csv with --reference; OUT/batch.json (the command, "
       "version, counts, times). Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 "
@@ -393,6 +397,7 @@ std::string caseEnded(Case& c, int status, const struct rusage& ru, const std::s
                                     : errorLine(c.log);
   }
   std::string line = c.name + " " + c.status + " in " + fixed(c.seconds, 1) + " s, " + fixed(c.peakRssMiB, 0) + " MiB";
+  if (!c.quality.empty() && c.quality != "ok") line += ", segmentation " + c.quality;
   if (!c.scores.empty()) line += ", Dice mean " + fixed(c.meanDice, 3) + " min " + fixed(c.minDice, 3);
   if (!c.message.empty()) line += ": " + c.message;
   if (c.status == "failed") line += " (log " + c.log + ")";
@@ -438,6 +443,7 @@ void runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vecto
 /// How the cases ended.
 struct CaseCounts {
   long ok = 0, failed = 0, skipped = 0, doneEarlier = 0;
+  long doubtful = 0, qualityFailed = 0;  ///< cases that ran (or were done earlier) with that quality status
 };
 
 CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
@@ -446,6 +452,8 @@ CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
     n.ok += c.status == "ok";
     n.failed += c.status == "failed";
     n.skipped += c.status == "skipped";
+    n.doubtful += c.quality == "doubtful";
+    n.qualityFailed += c.quality == "failed";
   }
   n.doneEarlier = doneEarlier;
   return n;
@@ -459,6 +467,8 @@ void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argv
   counts["failed"] = n.failed;
   counts["done_earlier"] = n.doneEarlier;
   counts["skipped_no_image"] = n.skipped;
+  counts["quality_doubtful"] = n.doubtful;
+  counts["quality_failed"] = n.qualityFailed;
   Json j;
   j["mskseg_version"] = MSK_VERSION;
   j["command"] = commandLineJson("batch", argvIn);
@@ -517,7 +527,8 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   const CaseCounts n = countCases(cases, doneEarlier);
   writeBatchJson(b, argvIn, n, started, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   std::cout << "batch: " << n.ok << " ok, " << n.failed << " failed, " << n.doneEarlier << " done earlier, "
-            << n.skipped << " without " << b.imageName << " -> " << b.outAbs.string() << "/summary.csv\n";
+            << n.skipped << " without " << b.imageName << "; segmentation doubtful in " << n.doubtful << ", failed in "
+            << n.qualityFailed << " -> " << b.outAbs.string() << "/summary.csv\n";
   return n.failed > 0 ? 1 : 0;
 }
 

@@ -1,12 +1,14 @@
 // mskseg batch end to end: every case of a cohort folder, per-case failures, resuming, the summary tables.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "msk/imaging/json.h"
+#include "msk/imaging/nifti_io.h"
 #include "msk/test/cli.h"
 #include "msk/test/files.h"
 
@@ -72,18 +74,20 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   EXPECT_EQ(rows[0][0], "case");
   EXPECT_EQ(rows[1][0], "notes");
   EXPECT_EQ(rows[1][1], "skipped");
+  EXPECT_EQ(rows[0][2], "quality");
   for (size_t i : {2u, 3u}) {
     EXPECT_EQ(rows[i][1], "ok") << rows[i][0];
-    EXPECT_EQ(rows[i][2], "0");
-    EXPECT_GT(std::stod(rows[i][5]), 0.0) << "the largest mean image residual, read from the case's report";
-    EXPECT_EQ(rows[i][7], "0") << "voxels inside two objects";
-    EXPECT_GT(std::stod(rows[i][9]), 0.95) << "mean Dice of " << rows[i][0];
+    EXPECT_EQ(rows[i][2], "ok") << rows[i][0] << ": the segmentation's quality status";
+    EXPECT_EQ(rows[i][3], "0");
+    EXPECT_GT(std::stod(rows[i][6]), 0.0) << "the largest mean image residual, read from the case's report";
+    EXPECT_EQ(rows[i][8], "0") << "voxels inside two objects";
+    EXPECT_GT(std::stod(rows[i][10]), 0.95) << "mean Dice of " << rows[i][0];
   }
   EXPECT_EQ(rows[4][0], "p03");
   EXPECT_EQ(rows[4][1], "failed");
-  EXPECT_EQ(rows[4][2], "1");
-  EXPECT_NE(rows[4][11].find("p03/image.nii.gz"), std::string::npos) << rows[4][11];
-  EXPECT_NE(rows[4][11].find("truncated"), std::string::npos) << rows[4][11];
+  EXPECT_EQ(rows[4][3], "1");
+  EXPECT_NE(rows[4][12].find("p03/image.nii.gz"), std::string::npos) << rows[4][12];
+  EXPECT_NE(rows[4][12].find("truncated"), std::string::npos) << rows[4][12];
   EXPECT_TRUE(fs::exists(out + "/p01/report.json"));
   EXPECT_TRUE(fs::exists(out + "/p02/femur_own_scene.vtk"));  // the case's own scene
   EXPECT_FALSE(fs::exists(out + "/p03"));
@@ -112,7 +116,7 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   rows = csvRows(out + "/summary.csv");
   ASSERT_EQ(rows.size(), 5u);
   EXPECT_EQ(rows[2][1], "done");
-  EXPECT_GT(std::stod(rows[2][9]), 0.95) << "a case done earlier is still scored";
+  EXPECT_GT(std::stod(rows[2][10]), 0.95) << "a case done earlier is still scored";
   EXPECT_EQ(rows[4][1], "ok");
   EXPECT_TRUE(fs::exists(out + "/p03/report.json"));
   EXPECT_FALSE(fs::exists(out + "/.p03.partial999999999"));
@@ -167,9 +171,33 @@ TEST(BatchCli, ImagePatternsFindOneFilePerCase) {
   const auto rows = csvRows(out + "/summary.csv");
   ASSERT_EQ(rows.size(), 4u);
   EXPECT_EQ(rows[1][1], "ok");
-  EXPECT_GT(std::stod(rows[1][9]), 0.95) << "scored against the file matching *_dseg.nii.gz";
+  EXPECT_GT(std::stod(rows[1][10]), 0.95) << "scored against the file matching *_dseg.nii.gz";
   EXPECT_EQ(rows[2][1], "failed");
-  EXPECT_NE(rows[2][11].find("2 files match"), std::string::npos) << rows[2][11];
+  EXPECT_NE(rows[2][12].find("2 files match"), std::string::npos) << rows[2][12];
   EXPECT_EQ(rows[3][1], "skipped");
-  EXPECT_NE(rows[3][11].find("no file matches"), std::string::npos) << rows[3][11];
+  EXPECT_NE(rows[3][12].find("no file matches"), std::string::npos) << rows[3][12];
+}
+
+// A case whose segmentation cannot have worked (a constant image) ends ok as a process, its outputs written, and the
+// summary's quality column says "failed"; batch.json counts it and the batch's exit code stays 0.
+TEST(BatchCli, SummaryHasTheQualityStatusOfEachCase) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  fs::create_directories(cases + "/flat");
+  msk::NiftiInfo info;
+  msk::ImageF image = msk::readNifti<float>(kSample + "image.nii.gz", &info);
+  std::fill(image.data.begin(), image.data.end(), 300.f);
+  msk::NiftiWriteOptions wo;
+  wo.like = &info;
+  msk::writeNifti(cases + "/flat/image.nii.gz", image, msk::DataType::Int16, wo);
+  const auto r = runCli({"batch", "--cases", cases, "--scene", femurScene(dir.file("scene.json"), "femur"), "--out",
+                         out, "--", "--quality", "fast", "--no-qc"});
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("segmentation failed"), std::string::npos) << r.err;
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0][2], "quality");
+  EXPECT_EQ(rows[1][1], "ok");
+  EXPECT_EQ(rows[1][2], "failed");
+  EXPECT_EQ(msk::readJsonFile(out + "/batch.json").at("cases").at("quality_failed").get<int>(), 1);
 }
