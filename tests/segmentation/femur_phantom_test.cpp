@@ -17,6 +17,8 @@ void checkFemur(const msk::test::FemurCase& c, const msk::TriangleMesh* templ = 
   EXPECT_GE(s.labels.dice, 0.95) << c.name << how;
   EXPECT_LE(s.labels.assd, 0.6) << c.name << how;
   EXPECT_LE(s.mesh.assd, 0.6) << c.name << how;
+  EXPECT_EQ(s.quality.status, msk::QualityStatus::Ok)
+      << c.name << how << ": " << (s.quality.reasons.empty() ? "" : s.quality.reasons[0]);
 }
 
 // Seeds 2–6, anisotropic and oblique grids included: one test per seed (FemurPhantom/FiveOtherSeeds.*/seed<k>).

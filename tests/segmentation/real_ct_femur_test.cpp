@@ -23,6 +23,7 @@ TEST(RealCtFemur, MirroredContralateralTemplate) {
   EXPECT_GT(r.after.dice, r.withoutPass.dice);
   EXPECT_GT(r.after.dice, r.before.dice + 0.1);
   EXPECT_LT(r.after.assd, r.before.assd);
+  EXPECT_EQ(r.status, msk::QualityStatus::Ok);
 }
 
 // The same femur with the hip bone of its side as a second object (template: the other side's hip bone label,
@@ -35,4 +36,5 @@ TEST(RealCtFemur, WithTheHipBoneAsCollisionPartner) {
   EXPECT_GE(r.femur.dice, 0.90);
   EXPECT_GT(r.hip.dice, 0.93);
   EXPECT_EQ(r.overlapVoxels, 0u);
+  EXPECT_EQ(r.status, msk::QualityStatus::Ok);
 }

@@ -15,6 +15,13 @@
 namespace {
 using msk::test::RealScene;
 using msk::test::SceneScore;
+
+/// Every object of a correct run passes the quality check (quality_check.h).
+void expectQualityOk(const SceneScore& sc) {
+  for (const msk::ObjectResult& o : sc.result.objects)
+    EXPECT_EQ(o.quality.status, msk::QualityStatus::Ok)
+        << o.name << ": " << (o.quality.reasons.empty() ? "" : o.quality.reasons[0]);
+}
 }  // namespace
 
 // Each autochthon muscle Dice ≥ 0.90 and no overlap: met. Every object uses the profile force with its
@@ -32,6 +39,7 @@ TEST(RealScenes, MrAutochthonMusclesWithTheVertebrae) {
     EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice) << sc.objects[i].name;
   }
   EXPECT_EQ(sc.overlapVoxels, 0u);
+  expectQualityOk(sc);
 }
 
 // Each Dice ≥ 0.88 and no overlap. Every object uses the profile force learned on the contralateral
@@ -54,6 +62,7 @@ TEST(RealScenes, CtFemurHipAndGlutealMusclesOfOneSide) {
     EXPECT_GT(sc.objects[i].after.dice, sc.objects[i].before.dice + 0.05) << sc.objects[i].name;
   }
   EXPECT_EQ(sc.overlapVoxels, 0u);
+  expectQualityOk(sc);
 }
 
 // How far a mirrored contralateral label can match at best on this CT (docs/measurements.md): the best rigid fit of the

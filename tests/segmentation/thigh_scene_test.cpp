@@ -41,6 +41,12 @@ TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
   for (const msk::test::ThighRun* r : {&without, &with})
     for (const msk::ObjectResult& o : r->res.objects)
       EXPECT_EQ(o.selfIntersections, 0u) << (r == &with ? "with collisions, " : "without, ") << o.name;
+  // Both runs pass the quality check.
+  for (const msk::test::ThighRun* r : {&without, &with})
+    for (const msk::ObjectResult& o : r->res.objects)
+      EXPECT_EQ(o.quality.status, msk::QualityStatus::Ok)
+          << (r == &with ? "with collisions, " : "without, ") << o.name << ": "
+          << (o.quality.reasons.empty() ? "" : o.quality.reasons[0]);
 }
 
 // Without the isotropic remeshing of the muscles' templates (decimated: triangles with edges from 0.2 to 28 mm), the

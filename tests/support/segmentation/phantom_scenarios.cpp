@@ -80,6 +80,7 @@ FemurScore segmentFemur(const FemurCase& c, const SegmentOptions& opts, const Tr
   s.labels = labelMetrics(res.labels, 1, c.labels, 1);
   s.mesh = meshMetrics(res.objects[0].mesh, c.truth);
   if (scores == TemplateScores::Measure) s.start = meshMetrics(t, c.truth);
+  s.quality = res.objects[0].quality;
   s.seconds = res.seconds;
   return s;
 }
@@ -154,6 +155,7 @@ ThighSceneScore segmentPhantomThigh(const PhantomCase& c, TemplateScores scores)
     o.name = scene.objects[i].name;
     o.dice = labelMetrics(res.labels, label, p.labels, label).dice;
     o.meshAssd = meshMetrics(res.objects[i].mesh, p.objects[i].truth).assd;
+    o.quality = res.objects[i].quality;
     if (scores == TemplateScores::Measure)
       o.templateAssd = meshMetrics(scene.objects[i].templ, p.objects[i].truth).assd;
     if (scene.objects[i].kind == ObjectKind::Muscle)

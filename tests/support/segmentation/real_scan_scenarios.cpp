@@ -336,6 +336,7 @@ CtFemurRuns runCtFemur(const std::string& data) {
   rasterizeInto(start, scene.objects[0].templ, 76);
   r.before = labelMetrics(start, 76, labels, 76);
   r.after = labelMetrics(res.labels, 76, labels, 76);
+  r.status = res.status;
   r.withoutPass = labelMetrics(unrefined.labels, 76, labels, 76);
   r.seconds = res.seconds;
   return r;
@@ -359,6 +360,7 @@ CtFemurWithHip runCtFemurWithHip(const std::string& data) {
   r.hipBefore = labelMetrics(start, 78, labels, 78);
   r.hip = labelMetrics(res.labels, 78, labels, 78);
   r.overlapVoxels = res.overlapVoxels;
+  r.status = res.status;
   r.penetrationMm = res.pairPenetrationMm.empty() ? 0 : res.pairPenetrationMm[0];
   r.seconds = res.seconds;
   return r;

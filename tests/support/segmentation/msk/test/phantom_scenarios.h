@@ -54,6 +54,7 @@ struct FemurScore {
   SegmentationMetrics labels;  ///< result labels against the exact labels
   SegmentationMetrics mesh;    ///< result surface against the truth surface
   SegmentationMetrics start;   ///< the template against the truth surface (TemplateScores::Measure)
+  ObjectQuality quality;       ///< the run's quality check of the femur
   double seconds = 0;          ///< the segmentation
 };
 
@@ -94,6 +95,7 @@ struct ThighObjectScore {
   double dice = 0;          ///< labels against the exact labels
   double meshAssd = 0;      ///< result surface against the truth surface, mm
   double templateAssd = 0;  ///< the template against the truth surface, mm (TemplateScores::Measure)
+  ObjectQuality quality;    ///< the run's quality check of the object
 };
 
 /// The thigh scene of a phantom case (its touching pairs as collision pairs), default settings, scored.

@@ -135,6 +135,7 @@ SegmentOptions ctFemurOptions(bool refine = true);
 struct CtFemurRuns {
   double midX = 0;
   SegmentationMetrics before, after, withoutPass;
+  QualityStatus status = QualityStatus::Ok;  ///< the run's quality status (with the refinement pass)
   double seconds = 0;
 };
 CtFemurRuns runCtFemur(const std::string& data);
@@ -143,6 +144,7 @@ CtFemurRuns runCtFemur(const std::string& data);
 struct CtFemurWithHip {
   SegmentationMetrics femurBefore, femur, hipBefore, hip;
   size_t overlapVoxels = 0;
+  QualityStatus status = QualityStatus::Ok;  ///< the run's quality status
   double penetrationMm = 0;
   double seconds = 0;
 };
