@@ -147,7 +147,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     res.secondsPerStage["surface-check"] = since(tq);
   }
   rasteriseLabels(res, scene, inside, image.grid);
-  const auto tq = Clock::now();
+  // The quality check of every written surface, in the image at the finest level's scale (quality_check.h).
+  const auto tc = Clock::now();
   const ImageFeatures& finest = features.at(res.settings.sigmaMm.back());
   const double noise = imageNoiseSigma(finest.smoothed);
   for (size_t i = 0; i < res.objects.size(); ++i) {
@@ -155,7 +156,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise);
     res.status = worseStatus(res.status, o.quality.status);
   }
-  res.secondsPerStage["quality-check"] = since(tq);
+  res.secondsPerStage["quality-check"] = since(tc);
   res.secondsPerStage["features"] = featureSeconds;
   res.featureScalesBuilt = features.built();
   res.seconds = since(t0);
