@@ -5,8 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 #include <string>
 
+#include "msk/core/error.h"
+#include "msk/imaging/nifti_io.h"
 #include "msk/test/atlas_scenarios.h"
 #include "msk/test/files.h"
 
@@ -39,6 +42,7 @@ TEST(AtlasRoute, PhantomSubjectInAnotherPoseAndSizeLosesNothing) {
   EXPECT_LE(run.meanAssd, 0.8);
   EXPECT_EQ(run.result.overlapVoxels, 0u);
   EXPECT_LE(deepestMm(run), 0.1);
+  EXPECT_EQ(run.result.status, msk::QualityStatus::Ok);
   // The global registration found the pose: it improved the match well beyond the start.
   ASSERT_TRUE(run.placement.registration.has_value());
   EXPECT_GT(run.placement.registration->metric, 0.9);
@@ -68,4 +72,35 @@ TEST(AtlasRoute, MirroredMrOntoTheMrMovedInWorldSpace) {
   EXPECT_GE(run.objects[0].result.dice, 0.87) << run.objects[0].name;
   EXPECT_GE(run.objects[1].result.dice, 0.87) << run.objects[1].name;
   EXPECT_EQ(run.result.overlapVoxels, 0u);
+  EXPECT_EQ(run.result.status, msk::QualityStatus::Ok);
+}
+
+// The quality check flags what the atlas route cannot have got right: the thigh atlas on an abdominal MR, the atlas
+// 30 mm off with registration turned off, an image of pure noise; a constant image cannot be registered at all.
+TEST(AtlasRoute, FailuresAreFlagged) {
+  msk::test::ScratchDir dir;
+  msk::test::AtlasCase c = msk::test::phantomAtlasCase(1, 2, msk::PhantomPose{});
+  c.options.evolution.quality = msk::Quality::Fast;
+  msk::PlacementOptions off;
+  off.registration = false;
+  off.start = Eigen::Matrix4d::Identity();
+  (*off.start)(0, 3) = 30;
+  EXPECT_NE(msk::test::runAtlasCase(c, dir.path(), off).result.status, msk::QualityStatus::Ok) << "30 mm off";
+
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(500.f, 150.f);
+  msk::test::AtlasCase noisy = c;
+  for (float& v : noisy.subject.data) v = noise(rng);
+  EXPECT_EQ(msk::test::runAtlasCase(noisy, dir.path()).result.status, msk::QualityStatus::Failed) << "pure noise";
+
+  msk::test::AtlasCase constant = c;
+  std::fill(constant.subject.data.begin(), constant.subject.data.end(), 400.f);
+  EXPECT_THROW(msk::test::runAtlasCase(constant, dir.path()), msk::Error) << "constant image";
+
+  const std::string data = msk::test::sharedData();
+  if (data.empty()) return;
+  msk::test::AtlasCase wrong = c;
+  wrong.subject = msk::readNifti<float>(data + "/totalseg-mr/mr.nii.gz");
+  wrong.subjectLabels = msk::readNifti<int32_t>(data + "/totalseg-mr/labels.nii.gz");
+  EXPECT_NE(msk::test::runAtlasCase(wrong, dir.path()).result.status, msk::QualityStatus::Ok) << "wrong body part";
 }
