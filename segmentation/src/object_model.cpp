@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "msk/core/error.h"
+#include "msk/core/log.h"
 #include "msk/imaging/surface_extraction.h"
 #include "msk/segmentation/surface_quality.h"
 #include "msk/segmentation/tetrahedralize.h"
@@ -96,7 +97,16 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
         (ghosts - st.lv[0].simplex.positions).cwiseAbs().maxCoeff() > 1e-6 * (1.0 + ghosts.cwiseAbs().maxCoeff()))
       throw Error(obj.name + ": the volume model's boundary does not match its surface model");
   }
-  st.search.mode = obj.hasForce ? obj.force : obj.model.imageForce;
+  // The profile force needs somewhere to learn its profiles other than the template where it starts: learned there,
+  // the profiles hold every vertex in place (the targets are the vertices) and the run ends having changed nothing.
+  const TargetMode asked = obj.hasForce ? obj.force : obj.model.imageForce;
+  st.force = asked == TargetMode::Profile && !hasProfileSource(obj) ? TargetMode::Gradient : asked;
+  if (st.force != asked)
+    log::warn(obj.name +
+              ": the profile force has no \"profiles_from\" (a mirror, matrix or image to learn its profiles on); "
+              "profiles learned on the template where it starts would hold it there: using the gradient force");
+  st.out.force = st.force;
+  st.search.mode = st.force;
   st.search.distancePenalty = opts.image.edgePenalty;
   // Polarity: the object's setting, else estimated once on the coarsest scale at the template position, on the template
   // as given (a vote over its vertices: remeshed, the same surface votes with other weights, and a borderline case such
@@ -128,7 +138,7 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     start.vertices += transfer.apply(disp);
     st.current = simplexFromTriangles(start);
   }
-  st.search.mode = refine ? TargetMode::Gradient : st.obj->hasForce ? st.obj->force : st.obj->model.imageForce;
+  st.search.mode = refine ? TargetMode::Gradient : st.force;
   st.search.edgeLevel = std::numeric_limits<double>::quiet_NaN();
   if (st.search.mode == TargetMode::Gradient && (opts.image.edgeLevel || refine)) {
     const SimplexMesh& at = refine ? st.current : ref.simplex;

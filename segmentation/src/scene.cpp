@@ -499,6 +499,10 @@ Scene parseScene(const Json& json, const std::string& path) {
   return scene;
 }
 
+bool hasProfileSource(const SceneObject& obj) {
+  return obj.profileSource.has_value() || obj.profileImage || !obj.profileImagePath.empty();
+}
+
 void toProfileSource(const SceneObject& obj, Points& positions, Points& normals) {
   if (!obj.profileSource) return;
   const Eigen::Matrix3d a = obj.profileSource->topLeftCorner<3, 3>();

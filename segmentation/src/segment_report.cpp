@@ -145,6 +145,7 @@ Json objectJson(const ObjectResult& o) {
   j["name"] = o.name;
   j["label"] = o.label;
   j["polarity"] = polarityName(o.polarity);
+  j["force"] = o.force == TargetMode::Profile ? "profile" : "gradient";
   j["vertices"] = o.mesh.vertexCount();
   j["seconds"] = o.seconds;
   j["volume_mm3"] = o.volumeMm3;
@@ -175,6 +176,8 @@ Json objectJson(const ObjectResult& o) {
     r["simplex_vertices"] = l.vertices;
     r["steps"] = l.steps;
     r["converged"] = l.converged;
+    r["drift_mm_per_step"] = l.driftMmPerStep;
+    r["stopped_on_tolerance"] = l.stoppedOnTolerance;
     r["last_max_move_mm"] = l.lastMaxMoveMm;
     r["sigma_mm"] = l.sigmaMm;
     r["range_mm"] = l.rangeMm;

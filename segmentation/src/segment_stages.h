@@ -68,9 +68,11 @@ struct ObjectState {
   ObjectResult out;
   std::vector<LevelMeshes> lv;  ///< index 0 finest
   TargetSearchOptions search;
+  TargetMode force = TargetMode::Gradient;  ///< the image force of the levels (the scene's, unless it cannot be used)
   Polarity polarity = Polarity::Auto;
   SimplexMesh current;
   Eigen::VectorXd residual;
+  double driftMmPerStep = 0;  ///< mean net displacement per step of the surface over the last steps of the pass, mm
   double searchSeconds = 0;
   int first = 0;  ///< first particle in the stacked system at the current level
   // Per-level constraint sets.

@@ -7,14 +7,29 @@
 
 namespace msk::detail {
 
+namespace {
+/// Steps over which an object's drift at the end of a pass is measured.
+constexpr int kSettleWindow = 10;
+}  // namespace
+
 LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fixed, LevelSystem& system,
                      Solver& solver, const SegmentOptions& opts, const ResolvedSettings& rs, const ImageFeatures& feat,
                      const ImageFeatures* focus, const Grid& grid, int& stepsDone, int rampSteps, int totalSteps,
                      const std::string& stage, const ProgressFn& progress, double& detectSeconds) {
   LevelReport rep;
+  rep.settleToleranceMm = rs.toleranceMm;
   const ShapeOptions& shape = opts.shape;
   const int sideTestEvery = opts.collision.sideTestEvery;
+  // Positions at the start of the last two windows of kSettleWindow steps, for each object's drift at the end.
+  Points windowStart, lastWindowStart;
+  int windowStep = -1, lastWindowStep = -1;
   for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
+    if (s % kSettleWindow == 0) {
+      lastWindowStart.swap(windowStart);
+      lastWindowStep = windowStep;
+      windowStart = solver.positions();
+      windowStep = s;
+    }
     const double runFraction = std::min(1.0, static_cast<double>(stepsDone) / std::max(1, rampSteps - 1));
     for (size_t i = 0; i < objs.size(); ++i) {
       if (fixed[i]) continue;
@@ -36,9 +51,21 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
     ++stepsDone;
     if (progress) progress(std::min(1.0, static_cast<double>(stepsDone) / totalSteps), stage);
     if (rep.lastMaxMoveMm < rs.toleranceMm) {
-      rep.converged = true;
+      rep.stoppedOnTolerance = true;
       break;
     }
+  }
+  // Each object's drift: the mean net displacement of its surface vertices per step over the last window (at least
+  // half a window long), in which the steps' back-and-forth between neighbouring image targets cancels.
+  const bool shortWindow = rep.steps - windowStep < kSettleWindow / 2 && lastWindowStep >= 0;
+  const Points& from = shortWindow ? lastWindowStart : windowStart;
+  const int span = rep.steps - (shortWindow ? lastWindowStep : windowStep);
+  for (size_t i = 0; i < objs.size(); ++i) {
+    if (fixed[i]) continue;
+    ObjectState& st = objs[i];
+    const int n = st.current.vertexCount();
+    const Points moved = solver.positions().middleRows(st.first, n) - from.middleRows(st.first, n);
+    st.driftMmPerStep = span > 0 && n > 0 ? moved.rowwise().norm().mean() / span : 0.0;
   }
   return rep;
 }
@@ -63,6 +90,8 @@ void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed,
     for (const auto& kv : solver.secondsPerFamily()) st.out.secondsPerFamily[kv.first] += kv.second;
     LevelReport r = report;
     r.vertices = st.current.vertexCount();
+    r.driftMmPerStep = st.driftMmPerStep;
+    r.converged = report.stoppedOnTolerance || st.driftMmPerStep < report.settleToleranceMm;
     st.out.levels.push_back(r);
   }
 }

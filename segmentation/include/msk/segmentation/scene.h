@@ -118,6 +118,10 @@ struct Scene {
   Json provenance;
 };
 
+/// Whether `obj` has somewhere to learn its profiles other than its template where it starts: a "profiles_from" map
+/// (profileSource) or image (profileImage).
+bool hasProfileSource(const SceneObject& obj);
+
 /// Maps template points and their outward normals to where `obj` learns its profiles (obj.profileSource; unchanged if
 /// unset): positions P·x, normals A⁻ᵀn normalised, which stay outward when P mirrors. Zero normals stay zero.
 void toProfileSource(const SceneObject& obj, Points& positions, Points& normals);

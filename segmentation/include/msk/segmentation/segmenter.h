@@ -37,13 +37,20 @@ struct AxisFirstReport {
 
 /// What one level of one object did.
 struct LevelReport {
-  int vertices = 0;          ///< simplex vertices
-  int steps = 0;             ///< steps taken
-  double lastMaxMoveMm = 0;  ///< largest displacement in the last step
-  bool converged = false;    ///< stopped on tolerance (not on the step cap)
-  double sigmaMm = 0;        ///< image scale of the level, mm
-  double rangeMm = 0;        ///< search range of the level, mm
-  bool refinement = false;   ///< the refinement pass (ImageSearchOptions::refinePass) rather than a level
+  int vertices = 0;                 ///< simplex vertices
+  int steps = 0;                    ///< steps taken
+  double lastMaxMoveMm = 0;         ///< largest displacement in the last step (of any object moving in the pass)
+  bool stoppedOnTolerance = false;  ///< the pass stopped because no vertex moved more than the tolerance in a step
+  /// The object's mean net displacement per step over its last steps (10, or 5 to 14 where the pass ends off that
+  /// lattice), mm: the steps' back-and-forth between neighbouring image targets cancels in it, a surface still on its
+  /// way does not
+  double driftMmPerStep = 0;
+  double settleToleranceMm = 0;  ///< the tolerance driftMmPerStep is held to, mm
+  /// The object settled: the pass stopped on the tolerance, or its drift is below the tolerance
+  bool converged = false;
+  double sigmaMm = 0;       ///< image scale of the level, mm
+  double rangeMm = 0;       ///< search range of the level, mm
+  bool refinement = false;  ///< the refinement pass (ImageSearchOptions::refinePass) rather than a level
 };
 
 /// The result for one object.
@@ -52,8 +59,11 @@ struct ObjectResult {
   int label = 0;
   TriangleMesh mesh;                   ///< final surface, RAS mm; point data "displacement_mm" and "image_residual_mm"
   Polarity polarity = Polarity::Auto;  ///< the polarity used (estimated if auto)
-  std::vector<LevelReport> levels;     ///< coarse first
-  double seconds = 0;                  ///< evolution time, shared equally among the objects evolved together
+  /// The image force of the levels: the scene's, except the profile force without a profile source
+  /// (hasProfileSource()), which falls back to the gradient force with a warning
+  TargetMode force = TargetMode::Gradient;
+  std::vector<LevelReport> levels;  ///< coarse first
+  double seconds = 0;               ///< evolution time, shared equally among the objects evolved together
   double volumeMm3 = 0, templateVolumeMm3 = 0;
   double meanImageResidualMm = 0;                  ///< mean |target offset| at the end
   std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
