@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "msk/core/error.h"
+#include "msk/core/log.h"
 #include "msk/imaging/grid.h"
 #include "msk/segmentation/segment_report.h"
 #include "msk/test/volumes.h"
@@ -61,6 +64,61 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
     EXPECT_LT(mx, 1.0 * spacing) << "start radius " << start;
     EXPECT_EQ(msk::closedMeshProblem(res.objects[0].mesh), "");
   }
+}
+
+// The profile force with nothing to learn its profiles on ("profiles_from" unset) would learn them on the template
+// where it starts, whose targets are then its own vertices: the object falls back to the gradient force with a warning
+// naming it, and reaches the ball from 3 mm as the gradient force does. With a source it keeps the profile force.
+TEST(Segmenter, ProfileForceWithoutAProfileSourceFallsBackToTheGradientWithAWarning) {
+  const double r = 20.0;
+  const msk::Grid g = cubeGrid(1.0, 32);
+  const Eigen::Vector3d c(0.7, -0.4, 0.3);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
+  scene.objects[0].hasForce = true;
+  scene.objects[0].force = scene.objects[0].model.imageForce = msk::TargetMode::Profile;
+  std::vector<std::string> warnings;
+  const msk::LogSink old = msk::log::setSink([&](msk::LogLevel l, const std::string& m) {
+    if (l == msk::LogLevel::Warn) warnings.push_back(m);
+  });
+  const msk::SegmentationResult res = msk::segmentScene(img, scene, msk::SegmentOptions{});
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("ball"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("gradient"), std::string::npos) << warnings[0];
+  EXPECT_EQ(res.objects[0].force, msk::TargetMode::Gradient);
+  EXPECT_LT(meanRadialError(res.objects[0].mesh, c, r), 0.25);
+
+  // With a source (here the identity: the template lies where its profiles are learned) no warning, profile force.
+  warnings.clear();
+  scene.objects[0].profileSource = Eigen::Matrix4d::Identity();
+  const msk::SegmentationResult withSource = msk::segmentScene(img, scene, msk::SegmentOptions{});
+  msk::log::setSink(old);
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_EQ(withSource.objects[0].force, msk::TargetMode::Profile);
+}
+
+// A level's "converged" says whether the surface has settled: its mean net displacement per step over the last steps
+// is below the tolerance. The largest single move of a step stays above the tolerance for good (vertices hop between
+// neighbouring target samples), so it cannot say so. A run cut after 3 steps from 3 mm out has not settled; the
+// default run has, on every level.
+TEST(Segmenter, ConvergedMeansTheSurfaceHasSettled) {
+  const double r = 20.0;
+  const msk::Grid g = cubeGrid(1.0, 32, {10, -5, 20});
+  const Eigen::Vector3d c(0.7, -0.4, 0.3);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
+  const msk::SegmentationResult full = msk::segmentScene(img, scene, msk::SegmentOptions{});
+  for (const msk::LevelReport& l : full.objects[0].levels) {
+    EXPECT_TRUE(l.converged) << "drift " << l.driftMmPerStep << " mm/step";
+    if (!l.stoppedOnTolerance) EXPECT_LT(l.driftMmPerStep, l.settleToleranceMm);
+    EXPECT_DOUBLE_EQ(l.settleToleranceMm, full.settings.toleranceMm);
+  }
+  msk::SegmentOptions cut;
+  cut.evolution.maxStepsPerLevel = 3;
+  const msk::SegmentationResult early = msk::segmentScene(img, scene, cut);
+  const msk::LevelReport& coarse = early.objects[0].levels.front();
+  EXPECT_FALSE(coarse.converged) << "drift " << coarse.driftMmPerStep << " mm/step";
+  EXPECT_GT(coarse.driftMmPerStep, 0.1);
 }
 
 // A template already on the boundary of its own image stays put.
