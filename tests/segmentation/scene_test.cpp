@@ -599,11 +599,14 @@ TEST(Scene, ProfilesFromErrorsNameTheObjectAndTheProblem) {
                    {"objects[0] (femur) profiles_from", "expected {\"mirror_x\""});
   expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror": 3})")),
                    {"profiles_from", "unknown key \"mirror\""});
-  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {})")), {"exactly one of"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {})")),
+                   {"give \"mirror_x\", \"matrix\" or \"image\""});
   expectSceneError(
       f.scene(twoObjects(
           R"(, "force": "profile", "profiles_from": {"mirror_x": 1, "matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})")),
-      {"exactly one of"});
+      {"at most one of"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"image": "missing.nii.gz"})")),
+                   {"objects[0] (femur)", "profiles_from image", "missing.nii.gz"});
   expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"mirror_x": "left"})")),
                    {"\"mirror_x\" must be a finite number"});
   expectSceneError(
