@@ -124,3 +124,24 @@ TEST(AtlasCli, BadObjectListsAndLabelsAreRefused) {
   expectOneLineError(atlas("femur:1", dir.file("shifted.nii.gz")), 1, "shifted.nii.gz", "not on the grid");
   EXPECT_FALSE(fs::exists(out)) << "partial output";
 }
+
+TEST(AtlasCli, BatchPlacesTheAtlasInEveryCase) {
+  ScratchDir dir;
+  const std::string atlas = buildSampleAtlas(dir);
+  fs::create_directories(dir.file("cohort/a"));
+  fs::copy_file(kSample + "image.nii.gz", dir.file("cohort/a/image.nii.gz"));
+  const std::string out = dir.file("results");
+  const CliResult r = runCli({"batch", "--cases", dir.file("cohort"), "--out", out, "--quiet", "--", "--atlas", atlas,
+                              "--quality", "fast", "--no-qc"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const msk::Json report = msk::readJsonFile(out + "/a/report.json");
+  EXPECT_EQ(report["atlas"], fs::absolute(atlas).string());
+  ASSERT_EQ(report["placement"]["objects"].size(), 4u);
+  EXPECT_TRUE(fs::exists(out + "/a/placement.tfm"));
+  EXPECT_EQ(msk::readJsonFile(out + "/batch.json")["atlas"], fs::absolute(atlas).string());
+  // --atlas and --scene together is a usage error.
+  const CliResult both = runCli({"batch", "--cases", dir.file("cohort"), "--out", dir.file("other"), "--atlas", atlas,
+                                 "--scene", kSample + "scene.json"});
+  EXPECT_EQ(both.exitCode, 2) << both.err;
+  EXPECT_FALSE(fs::exists(dir.file("other")));
+}
