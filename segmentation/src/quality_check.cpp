@@ -122,6 +122,9 @@ void judgeQuality(ObjectQuality& q, const QualityThresholds& t) {
          t.minEdgeShare);
   if (q.contrastJudged && q.contrastToNoise < t.minContrastToNoise)
     flag(QualityStatus::Doubtful, "contrast-to-noise across the surface", q.contrastToNoise, "<", t.minContrastToNoise);
+  if (std::isfinite(q.profileMatch) && q.profileMatch < t.minProfileMatch)
+    flag(QualityStatus::Doubtful, "correlation of the surface's profiles with the learned ones", q.profileMatch, "<",
+         t.minProfileMatch);
 }
 
 }  // namespace msk

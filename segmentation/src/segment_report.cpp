@@ -136,6 +136,7 @@ Json qualityJson(const ObjectQuality& q) {
   j["edge_share"] = q.edgeShare;
   j["contrast_to_noise"] = q.contrastToNoise;
   j["contrast_judged"] = q.contrastJudged;
+  if (std::isfinite(q.profileMatch)) j["profile_match"] = q.profileMatch;
   j["reasons"] = q.reasons;
   return j;
 }

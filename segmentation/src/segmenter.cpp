@@ -154,6 +154,13 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   for (size_t i = 0; i < res.objects.size(); ++i) {
     ObjectResult& o = res.objects[i];
     o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise);
+    const ObjectState& st = objs[i];
+    if (st.force == TargetMode::Profile && st.profiles.profiles.rows() == st.current.vertexCount()) {
+      const LearnedProfiles now =
+          learnProfiles(finest, st.current.positions, simplexVertexNormals(st.current), st.search, image.grid);
+      o.quality.profileMatch = now.profiles.cwiseProduct(st.profiles.profiles).rowwise().sum().mean();
+      judgeQuality(o.quality);
+    }
     res.status = worseStatus(res.status, o.quality.status);
   }
   res.secondsPerStage["quality-check"] = since(tc);

@@ -183,3 +183,20 @@ TEST_F(ThighQuality, WrongBodyPartIsFlagged) {
   const msk::SegmentationResult res = run(msk::readNifti<float>(data + "/totalseg-mr/mr.nii.gz"), thigh_->scene);
   EXPECT_NE(res.status, QualityStatus::Ok) << figures(res);
 }
+
+// The profile match is judged where it was measured (objects on the profile force) and only there.
+TEST(QualityCheck, ProfileMatchIsJudgedWhereMeasured) {
+  ObjectQuality q;
+  q.inImageShare = 1;
+  q.edgeShare = 0.8;
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Ok);  // not measured (NaN)
+  q.profileMatch = 0.58;                   // the lowest of the correct real-scan runs (an MR vertebra)
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Ok);
+  q.profileMatch = 0.1;
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Doubtful);
+  ASSERT_EQ(q.reasons.size(), 1u);
+  EXPECT_NE(q.reasons[0].find("profiles"), std::string::npos) << q.reasons[0];
+}

@@ -4,6 +4,7 @@
 /// image without structure, or from a misplaced template still converges and reports small residuals; these figures
 /// tell it apart. The limits live in QualityThresholds (docs/method.md, "Knowing when a segmentation failed"; the
 /// calibration in docs/measurements.md).
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,9 @@ struct ObjectQuality {
   /// Whether the contrast is judged: the object's last pass used the gradient force (which seeks a step of its
   /// polarity). A profile force seeks a learned profile, which may be a boundary of little contrast.
   bool contrastJudged = false;
+  /// Objects on the profile force: the mean over the final surface's vertices of the correlation of its intensity
+  /// profile with the one it learned (1: every boundary looks as where the profiles were learned); NaN otherwise.
+  double profileMatch = std::numeric_limits<double>::quiet_NaN();
   QualityStatus status = QualityStatus::Ok;
   std::vector<std::string> reasons;  ///< one line per figure beyond its limit: the status, figure, value and limit
 };
@@ -49,6 +53,7 @@ struct QualityThresholds {
   double minInImageShare = 0.5;     ///< below: failed (the surface lies mostly outside the image)
   double minEdgeShare = 0.1;        ///< below: failed (no edge of the object's polarity stands out of the noise)
   double minContrastToNoise = 0.5;  ///< below, where the contrast is judged: doubtful (no consistent boundary)
+  double minProfileMatch = 0.3;     ///< below, where measured: doubtful (the boundary does not look as learned)
 };
 
 /// The noise level of an image: 1.4826 · MAD of the differences of neighbouring voxels along i, divided by √2 (0 for a
