@@ -173,7 +173,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   } else {
     scene = loadScene(scenePath);
   }
-  const SegmentationResult res = segmentScene(image, scene, opts, stderrProgress("segment"));
+  SegmentationResult res = segmentScene(image, scene, opts, stderrProgress("segment"));
+  if (placement) judgePlacement(*placement, res);
 
   Json report;
   report["mskseg_version"] = MSK_VERSION;

@@ -42,8 +42,13 @@ void runCase(benchmark::State& state, const msk::test::AtlasCase& c) {
   state.counters["placement_s"] = run.placementSeconds;
   state.counters["segment_s"] = run.segmentSeconds;
   int kept = 0;
-  for (const msk::ObjectPlacement& o : run.placement.objects) kept += o.registered ? 1 : 0;
+  double refused = 0;
+  for (const msk::ObjectPlacement& o : run.placement.objects) {
+    kept += o.registered ? 1 : 0;
+    if (!o.registered) refused = std::max(refused, o.moveDegrees);
+  }
   state.counters["objects_placed_on_their_own"] = kept;
+  state.counters["largest_refused_move_deg"] = refused;
 }
 
 msk::PhantomPose pose(double ax, double ay, double az, double tx, double ty, double tz, double scale) {

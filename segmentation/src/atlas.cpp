@@ -332,6 +332,7 @@ void keepPairsApart(const Atlas& atlas, Placement& p) {
       if (share[i] == 0.0) {
         o.registered = false;
         o.note = "its own registration brought it into a collision partner";
+        o.keptOutOfPartner = true;
       } else {
         o.note = "its own move was scaled by " + std::to_string(share[i]) + " to keep out of a collision partner";
       }
@@ -392,6 +393,19 @@ Scene placedScene(const Atlas& atlas, const Placement& placement) {
     o.profileSource = o.profileSource ? Eigen::Matrix4d(*o.profileSource * back) : back;
   }
   return scene;
+}
+
+void judgePlacement(const Placement& placement, SegmentationResult& result) {
+  for (size_t i = 0; i < placement.objects.size() && i < result.objects.size(); ++i) {
+    const ObjectPlacement& o = placement.objects[i];
+    if (!o.keptOutOfPartner || o.moveDegrees <= kDoubtfulRefusedTurnDegrees) continue;
+    ObjectQuality& q = result.objects[i].quality;
+    q.status = worseStatus(q.status, QualityStatus::Doubtful);
+    q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) +
+                        " degrees from the global placement, more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
+                        ", and was undone because it ran into a collision partner");
+    result.status = worseStatus(result.status, q.status);
+  }
 }
 
 Json placementJson(const Placement& placement) {

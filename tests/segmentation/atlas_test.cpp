@@ -126,3 +126,25 @@ TEST(AtlasRoute, FailuresAreFlagged) {
   wrong.subjectLabels = msk::readNifti<int32_t>(data + "/totalseg-mr/labels.nii.gz");
   EXPECT_NE(msk::test::runAtlasCase(wrong, dir.path()).result.status, msk::QualityStatus::Ok) << "wrong body part";
 }
+
+// An object whose own registration turned it far from the global placement and was undone at a collision partner is
+// doubtful; a small undone turn, or a far turn kept, is not.
+TEST(AtlasRoute, AnUndoneFarTurnMakesAnObjectDoubtful) {
+  msk::Placement p;
+  p.objects.resize(3);
+  p.objects[0].keptOutOfPartner = true;
+  p.objects[0].moveDegrees = 14;
+  p.objects[1].keptOutOfPartner = true;
+  p.objects[1].moveDegrees = 7;
+  p.objects[2].registered = true;
+  p.objects[2].moveDegrees = 20;
+  msk::SegmentationResult r;
+  r.objects.resize(3);
+  msk::judgePlacement(p, r);
+  EXPECT_EQ(r.objects[0].quality.status, msk::QualityStatus::Doubtful);
+  ASSERT_EQ(r.objects[0].quality.reasons.size(), 1u);
+  EXPECT_NE(r.objects[0].quality.reasons[0].find("collision partner"), std::string::npos);
+  EXPECT_EQ(r.objects[1].quality.status, msk::QualityStatus::Ok);
+  EXPECT_EQ(r.objects[2].quality.status, msk::QualityStatus::Ok);
+  EXPECT_EQ(r.status, msk::QualityStatus::Doubtful);
+}

@@ -141,6 +141,7 @@ AtlasRun runAtlasCase(const AtlasCase& c, const std::string& scratch, const Plac
   run.placementSeconds = since(t0);
   t0 = std::chrono::steady_clock::now();
   run.result = segmentScene(c.subject, scene, c.options);
+  judgePlacement(run.placement, run.result);
   run.segmentSeconds = since(t0);
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     AtlasObjectScore s;

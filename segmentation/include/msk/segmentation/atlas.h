@@ -11,6 +11,7 @@
 #include "msk/imaging/json.h"
 #include "msk/imaging/registration.h"
 #include "msk/segmentation/scene.h"
+#include "msk/segmentation/segmenter.h"
 #include "msk/segmentation/template_builder.h"
 
 namespace msk {
@@ -82,6 +83,7 @@ struct ObjectPlacement {
   Eigen::Matrix4d transform = Eigen::Matrix4d::Identity();  ///< atlas → subject for this object
   bool registered = false;                   ///< its own registration was kept (false: the global placement)
   std::string note;                          ///< why its own registration was not kept, if it ran
+  bool keptOutOfPartner = false;             ///< its own registration was undone to keep it out of a collision partner
   double metricBefore = 0, metricAfter = 0;  ///< its neighbourhood's metric at the global and at its own placement
   double moveDegrees = 0, moveMm = 0;        ///< its own placement against the global one (at its template centre)
   double scale = 1;                          ///< cube root of |det| of its transform
@@ -115,6 +117,15 @@ Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementO
 /// The atlas's scene placed in the subject: each template moved by its object's transform (faces flipped if it
 /// mirrors), its profiles still learned on the reference where the template came from.
 Scene placedScene(const Atlas& atlas, const Placement& placement);
+
+/// An object whose own registration turned it more than this from the global placement, and which was then kept at
+/// the global placement because the turn ran it into a collision partner, starts where its own image evidence says it
+/// does not belong: judgePlacement() makes it doubtful.
+constexpr double kDoubtfulRefusedTurnDegrees = 10.0;
+
+/// Adds the placement's doubts to the objects' quality (segmenter.h) and the case's status: see
+/// kDoubtfulRefusedTurnDegrees.
+void judgePlacement(const Placement& placement, SegmentationResult& result);
 
 /// The placement as report.json holds it: metric, transforms (4×4 rows), registration stages, per object figures.
 Json placementJson(const Placement& placement);
