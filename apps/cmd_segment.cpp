@@ -5,6 +5,7 @@
 #include <string>
 
 #include "commands.h"
+#include "msk/core/atomic_file.h"
 #include "msk/core/log.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -40,7 +41,7 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
   Json& objects = report["objects"];
   for (size_t i = 0; i < res.objects.size(); ++i) {
     const ObjectResult& o = res.objects[i];
-    writeMesh(dir + "/" + o.name + ".vtk", o.mesh, outputs.space);
+    writeMesh(fileInFolder(dir, o.name + ".vtk"), o.mesh, outputs.space);
     objects[i]["mesh"] = o.name + ".vtk";
     if (o.selfIntersections > 0)
       log::warn(o.name + ": " + std::to_string(o.selfIntersections) +
@@ -48,7 +49,7 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
     if (o.volumeMesh.tetCount() > 0) {
       // A tet mesh with inverted elements is not written (it would not be a valid volume); the report says so.
       if (o.invertedTets == 0) {
-        writeTetMesh(dir + "/" + o.name + ".vtu", o.volumeMesh, outputs.space);
+        writeTetMesh(fileInFolder(dir, o.name + ".vtu"), o.volumeMesh, outputs.space);
         objects[i]["volume_model"]["mesh"] = o.name + ".vtu";
       } else {
         log::warn(o.name + ".vtu not written: " + std::to_string(o.invertedTets) + " of " +

@@ -14,6 +14,39 @@ namespace fs = std::filesystem;
 
 namespace msk {
 
+bool isSafeName(const std::string& name) {
+  if (name.empty() || name.size() > 64 || !std::isalnum(static_cast<unsigned char>(name[0]))) return false;
+  for (char ch : name) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c >= 128 || !(std::isalnum(c) || c == '_' || c == '.' || c == '-')) return false;
+  }
+  return true;
+}
+
+std::string printableName(const std::string& name) {
+  static const char* hex = "0123456789abcdef";
+  std::string out;
+  for (char ch : name) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c >= 32 && c < 127) {
+      out += ch;
+    } else {
+      out += "\\x";
+      out += hex[c >> 4];
+      out += hex[c & 15];
+    }
+    if (out.size() >= 80) return out + "...";
+  }
+  return out;
+}
+
+std::string fileInFolder(const std::string& folder, const std::string& fileName) {
+  if (fileName.empty() || fileName == "." || fileName == ".." || fileName.size() > 255 ||
+      fileName.find_first_of(std::string("/\\\0", 3)) != std::string::npos)
+    throw IoError(folder, "the file name \"" + printableName(fileName) + "\" would leave the folder or is not a name");
+  return (fs::path(folder) / fileName).string();
+}
+
 std::string fileExtension(const std::string& path) {
   std::string name = fs::path(path).filename().string();
   std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });

@@ -6,9 +6,9 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
-#include <regex>
 #include <set>
 
+#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/core/winding_number.h"
 #include "msk/imaging/checksum.h"
@@ -51,7 +51,6 @@ std::array<Eigen::Vector3d, 2> meshBox(const TriangleMesh& m) {
 }  // namespace
 
 std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const std::string& option) {
-  static const std::regex nameRe("[A-Za-z0-9][A-Za-z0-9_.-]{0,63}");
   std::vector<AtlasObjectSpec> out;
   std::set<std::string> names;
   std::set<int> labels;
@@ -71,7 +70,7 @@ std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const st
       throw ParameterError(option, entry, "each entry must be NAME:LABEL or NAME:LABEL:KIND");
     AtlasObjectSpec spec;
     spec.name = parts[0];
-    if (!std::regex_match(spec.name, nameRe))
+    if (!isSafeName(spec.name))
       throw ParameterError(option, entry,
                            "names are 1-64 characters of letters, digits, '_', '.', '-', starting with a letter or "
                            "digit");
@@ -122,7 +121,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     obj.label = spec.label;
     obj.kind = spec.kind;
     obj.templ = templateFromLabels(labels, spec.label, opts.templates, &tr);
-    obj.templatePath = dir + "/template_" + spec.name + ".vtk";
+    obj.templatePath = fileInFolder(dir, "template_" + spec.name + ".vtk");
     obj.model = defaultModel(spec.kind);
     obj.model.imageForce = TargetMode::Profile;
     obj.hasForce = true;

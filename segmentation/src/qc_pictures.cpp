@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
+#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
 #include "msk/segmentation/png_file.h"
@@ -180,7 +181,7 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
       text(pic, v.rightLetter, cv::Point(std::max(0, p.width - 14), p.height / 2 + 5));
       text(pic, v.topLetter, cv::Point(p.width / 2 - 4, 32));
 
-      const std::string path = (fs::path(dir) / (safeFileName(obj.name) + "_" + v.name + ".png")).string();
+      const std::string path = fileInFolder(dir, safeFileName(obj.name) + "_" + v.name + ".png");
       writePngAtomically(path, pic);
       written.push_back(path);
     }

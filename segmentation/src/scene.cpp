@@ -7,6 +7,7 @@
 #include <map>
 #include <set>
 
+#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -269,11 +270,15 @@ SceneObject parseObject(const Checker& check, const Json& o, size_t i, const fs:
   // The name first, so that every later message can show it.
   std::string name;
   if (const Json* n = jsonMember(o, "name"); n && n->is_string()) name = n->get<std::string>();
-  const std::string where = objectWhere(i, name);
+  const std::string where = objectWhere(i, printableName(name));
   check.knownKeys(o, kObjectKeys, where, "key");
 
   SceneObject obj;
   obj.name = *check.string(o, "name", where, true);
+  if (!isSafeName(obj.name))
+    check.fail(where,
+               "the name must be 1-64 characters of letters, digits, '_', '.' or '-', starting with a letter or digit "
+               "(it names the output files)");
   if (auto it = byName.find(obj.name); it != byName.end())
     check.fail(where, "duplicate name \"" + obj.name + "\" (also " + objectWhere(it->second, obj.name) + ")");
   byName[obj.name] = i;

@@ -212,3 +212,22 @@ TEST(SegmentCli, VolumetricMuscleAmongPartnersFollowsItsSeparatedSurface) {
   EXPECT_EQ(rep.at("volume_models_built").get<int>(), 1);
   expectTetMeshOnItsSurface(out, "quadriceps");
 }
+
+// An object name that would leave the output folder is refused when the scene is read: one line naming the scene and
+// the object, exit 1, nothing written inside or outside --out.
+TEST(SegmentCli, ObjectNamesCannotLeaveTheOutputFolder) {
+  msk::test::ScratchDir dir;
+  msk::Json scene = msk::readJsonFile(kSample + "scene.json");
+  for (msk::Json& o : scene["objects"]) o["template"] = kSample + o["template"].get<std::string>();
+  scene["objects"][0]["name"] = "../../escaped_femur";
+  scene["collisions"] = msk::Json::array();
+  const std::string scenePath = dir.file("scene.json");
+  msk::writeJsonFile(scenePath, scene);
+  fs::create_directories(dir.file("a/b"));
+  const msk::test::CliResult r =
+      runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", scenePath, "--out", dir.file("a/b/out")});
+  msk::test::expectOneLineError(r, 1, "scene.json", "objects[0] (../../escaped_femur)");
+  EXPECT_FALSE(fs::exists(dir.file("a/b/out")));
+  EXPECT_FALSE(fs::exists(dir.file("escaped_femur.vtk")));
+  EXPECT_FALSE(fs::exists(dir.file("a/escaped_femur.vtk")));
+}

@@ -786,3 +786,26 @@ TEST(Scene, WrittenSceneReadsBackTheSame) {
   const msk::Scene plain = msk::loadScene(f.scene(twoObjects("", "\"auto\""), "plain.json"));
   EXPECT_EQ(msk::sceneJson(plain, f.dir().path()).at("collisions"), msk::Json("auto"));
 }
+
+// Object names name output files: anything but the safe set is refused when the scene is read, naming the object and
+// showing the name in printable form.
+TEST(Scene, UnsafeObjectNamesAreRefused) {
+  SceneFiles f;
+  auto named = [&](const std::string& jsonName) {
+    std::string text = twoObjects("", "[]");
+    text.replace(text.find("\"femur\""), 7, jsonName);
+    return f.scene(text);
+  };
+  const std::string rule = "the name must be 1-64 characters";
+  expectSceneError(named(R"("../../escaped_femur")"), {"objects[0] (../../escaped_femur)", rule});
+  expectSceneError(named(R"("fe\u0000mur")"), {"objects[0] (fe\\x00mur)", rule});
+  expectSceneError(named(R"("labels.nii.gz/x")"), {rule});
+  expectSceneError(named(R"(".")"), {rule});
+  expectSceneError(named(R"("..")"), {rule});
+  expectSceneError(named(R"(".hidden")"), {rule});
+  expectSceneError(named(R"("left femur")"), {rule});
+  expectSceneError(named(R"("f\u00e9mur")"), {"objects[0] (f\\xc3\\xa9mur)", rule});
+  expectSceneError(named("\"" + std::string(65, 'a') + "\""), {rule});
+  EXPECT_NO_THROW(msk::loadScene(named("\"" + std::string(64, 'a') + "\"")));
+  EXPECT_NO_THROW(msk::loadScene(named(R"("Femur_R.v2-final")")));
+}

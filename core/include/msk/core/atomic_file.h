@@ -28,6 +28,19 @@ class AtomicFile {
 /// Runs `write(tempPath)` and commits; on any exception the temporary file is removed and the error rethrown.
 void writeAtomically(const std::string& target, const std::function<void(const std::string& tempPath)>& write);
 
+/// Whether `name` is a safe object name: 1–64 ASCII letters, digits, '_', '.' or '-', the first a letter or digit.
+/// Object names name output files (<name>.vtk, qc/<name>_axial.png), so that no name can leave its output folder,
+/// hide a file, or carry bytes a report or a terminal cannot show.
+bool isSafeName(const std::string& name);
+
+/// `name` shown in a message: printable ASCII kept, every other byte as \xHH, cut to 80 characters.
+std::string printableName(const std::string& name);
+
+/// The path of file `fileName` in `folder`. Throws IoError naming the folder if the file name is empty, ".", "..",
+/// contains '/', '\\' or a NUL byte, or is longer than 255 bytes: every output path is built here, so that none
+/// leaves its folder.
+std::string fileInFolder(const std::string& folder, const std::string& fileName);
+
 /// Lower-cased extension including ".gz" pairs: "a/b.nii.gz" -> ".nii.gz", "x.VTK" -> ".vtk".
 std::string fileExtension(const std::string& path);
 
