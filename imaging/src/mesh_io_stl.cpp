@@ -4,6 +4,7 @@
 #include <vtkSTLReader.h>
 #include <vtkSTLWriter.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 
@@ -29,10 +30,33 @@ bool stlSpace(const std::string& path, MeshSpace& out) {
   return findSpaceToken(head, path, out);
 }
 
+/// Refuses a binary STL whose triangle count asks for more bytes than the file has, before VTK reserves memory for
+/// it (VTK takes the count as given). A file is read as binary, as VTK reads it, unless its first 256 bytes are all
+/// text (no NUL, nothing above 127).
+void checkStlSize(const std::string& path) {
+  const std::string head = readBytes(path, 256);
+  const bool text = std::all_of(head.begin(), head.end(), [](char ch) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    return c != 0 && c < 128;
+  });
+  if (text && head.rfind("solid", 0) == 0) return;
+  std::error_code ec;
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw IoError(path, "cannot read the file size: " + ec.message());
+  if (head.size() < 84 || size < 84) throw IoError(path, "binary STL shorter than its 84-byte header");
+  uint32_t n = 0;
+  for (int b = 3; b >= 0; --b) n = (n << 8) | static_cast<unsigned char>(head[80 + static_cast<size_t>(b)]);
+  if (static_cast<uintmax_t>(n) * 50 + 84 > size)
+    throw IoError(path, "binary STL header says " + std::to_string(n) + " triangles (" +
+                            std::to_string(static_cast<uintmax_t>(n) * 50 + 84) + " bytes) but the file has " +
+                            std::to_string(size) + " bytes");
+}
+
 }  // namespace
 
 TriangleMesh readStl(const std::string& path, MeshSpace& space) {
   VtkQuiet quiet;
+  checkStlSize(path);
   stlSpace(path, space);
   vtkNew<vtkSTLReader> r;
   r->SetFileName(path.c_str());

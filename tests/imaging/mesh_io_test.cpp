@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <fstream>
 #include <random>
 #include <sstream>
 
@@ -386,3 +387,27 @@ TEST(MeshIo, SpaceNamesParseAndPrint) {
 }
 
 }  // namespace
+
+// A binary STL whose triangle count asks for more bytes than the file has is refused before anything is allocated:
+// one error naming the file and the count (the shared crasher made VTK reserve about 7 GB).
+TEST(MeshIo, BinaryStlCountBeyondTheFileIsRefused) {
+  msk::test::ScratchDir dir;
+  std::string bytes(84 + 50, '\0');
+  bytes.replace(0, 5, "solid");  // binary despite the word: VTK reads it as binary (non-text bytes)
+  const uint32_t n = 100000000;
+  std::memcpy(&bytes[80], &n, 4);
+  const std::string path = dir.file("huge.stl");
+  msk::test::writeBytes(path, bytes);
+  try {
+    msk::readMesh(path);
+    ADD_FAILURE() << "no error";
+  } catch (const msk::IoError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_NE(std::string(e.what()).find("100000000 triangles"), std::string::npos) << e.what();
+  }
+  const std::string data = msk::test::sharedData();
+  if (data.empty()) return;
+  const std::string crasher = data + "/../inputs/crashers/stl_fuzz_oom_malloc7GB_benign_in_release.stl";
+  if (!std::ifstream(crasher)) return;
+  EXPECT_THROW(msk::readMesh(crasher), msk::IoError);
+}
