@@ -4,6 +4,7 @@
 #include <vtkXMLPolyDataReader.h>
 #include <vtkXMLPolyDataWriter.h>
 
+#include "isolated_reader.h"
 #include "mesh_io_detail.h"
 #include "vtk_mesh.h"
 
@@ -25,9 +26,8 @@ bool vtpSpace(const std::string& path, vtkPolyData* pd, MeshSpace& out) {
   return false;
 }
 
-}  // namespace
-
-TriangleMesh readVtp(const std::string& path, MeshSpace& space) {
+/// VTK's XML reader in this process.
+TriangleMesh readVtpHere(const std::string& path, MeshSpace& space) {
   VtkQuiet quiet;
   vtkNew<vtkXMLPolyDataReader> r;
   r->SetFileName(path.c_str());
@@ -35,6 +35,15 @@ TriangleMesh readVtp(const std::string& path, MeshSpace& space) {
   vtpSpace(path, pd, space);
   pd = triangulate(pd, false);
   return toMesh(pd, path);
+}
+
+}  // namespace
+
+// VTK's XML reader crashes (null pointers, division by zero, unbounded recursion) and exhausts memory or time on
+// malformed files, and validating its XML, base64 and compressed blocks ahead of it would mean writing a reader: it
+// runs in a child process instead, where a crash is one error naming the file.
+TriangleMesh readVtp(const std::string& path, MeshSpace& space) {
+  return readInChildProcess(path, space, "VTK XML", readVtpHere);
 }
 
 void writeVtp(const std::string& file, const std::string& path, const TriangleMesh& m, MeshSpace space) {

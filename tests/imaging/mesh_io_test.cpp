@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <vector>
 
 #include "msk/core/error.h"
 #include "msk/test/files.h"
@@ -410,4 +411,29 @@ TEST(MeshIo, BinaryStlCountBeyondTheFileIsRefused) {
   const std::string crasher = data + "/../inputs/crashers/stl_fuzz_oom_malloc7GB_benign_in_release.stl";
   if (!std::ifstream(crasher)) return;
   EXPECT_THROW(msk::readMesh(crasher), msk::IoError);
+}
+
+// Files that crash VTK's XML reader or exhaust it (the shared crashers, and 200,000 nested elements, which overflow its
+// stack) end with one error naming the file, quickly, in this process.
+TEST(MeshIo, MalformedVtpFilesAreOneErrorNamingTheFile) {
+  msk::test::ScratchDir dir;
+  std::string nested = "<VTKFile type=\"PolyData\">";
+  for (int i = 0; i < 200000; ++i) nested += "<a>";
+  const std::string deep = dir.file("deep.vtp");
+  msk::test::writeBytes(deep, nested);
+  std::vector<std::string> files = {deep};
+  const std::string data = msk::test::sharedData();
+  const std::string crashers = data + "/../inputs/crashers/";
+  for (const char* name : {"vtp_segv_ReadXMLInformation.vtp", "vtp_segv_ReadBlock.vtp",
+                           "vtp_sigfpe_ReadCompressedData.vtp", "vtp_oom_12GB.vtp", "vtp_slow_over60s.vtp"})
+    if (!data.empty() && std::ifstream(crashers + name)) files.push_back(crashers + name);
+  for (const std::string& f : files) {
+    try {
+      msk::readMesh(f);
+      ADD_FAILURE() << "no error for " << f;
+    } catch (const msk::IoError& e) {
+      EXPECT_EQ(e.file(), f);
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    }
+  }
 }

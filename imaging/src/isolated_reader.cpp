@@ -1,0 +1,204 @@
+#include "isolated_reader.h"
+
+#include <poll.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <new>
+
+#include "msk/core/error.h"
+
+namespace msk::detail {
+
+namespace {
+
+// The child's answer: one status byte, then the mesh (counts, vertices, faces, point data, space) or the message.
+enum class Answer : char { Mesh = 'M', IoProblem = 'I', OutOfMemory = 'O', Other = 'E' };
+
+void put(std::string& out, const void* p, size_t n) { out.append(static_cast<const char*>(p), n); }
+template <typename T>
+void putValue(std::string& out, T v) {
+  put(out, &v, sizeof v);
+}
+
+std::string encode(const TriangleMesh& m, MeshSpace space) {
+  std::string out(1, static_cast<char>(Answer::Mesh));
+  putValue<int64_t>(out, m.vertexCount());
+  putValue<int64_t>(out, m.faceCount());
+  putValue<int64_t>(out, static_cast<int64_t>(m.pointData.size()));
+  putValue<int32_t>(out, space == MeshSpace::LPS ? 0 : 1);
+  for (int v = 0; v < m.vertexCount(); ++v)
+    for (int c = 0; c < 3; ++c) putValue<double>(out, m.vertices(v, c));
+  for (int f = 0; f < m.faceCount(); ++f)
+    for (int c = 0; c < 3; ++c) putValue<int32_t>(out, m.faces(f, c));
+  for (const auto& [name, values] : m.pointData) {
+    putValue<int64_t>(out, static_cast<int64_t>(name.size()));
+    out += name;
+    for (Eigen::Index i = 0; i < values.size(); ++i) putValue<double>(out, values[i]);
+  }
+  return out;
+}
+
+/// Reads the child's answer; throws IoError(path, ...) if it is cut short.
+class Decoder {
+ public:
+  Decoder(const std::string& bytes, const std::string& path) : b_(bytes), path_(path) {}
+  template <typename T>
+  T value() {
+    T v;
+    take(&v, sizeof v);
+    return v;
+  }
+  std::string text(size_t n) {
+    std::string s(n, '\0');
+    take(s.data(), n);
+    return s;
+  }
+
+ private:
+  void take(void* p, size_t n) {
+    if (at_ + n > b_.size()) throw IoError(path_, "the reader's answer was cut short");
+    std::memcpy(p, b_.data() + at_, n);
+    at_ += n;
+  }
+  const std::string& b_;
+  const std::string& path_;
+  size_t at_ = 1;
+};
+
+TriangleMesh decode(const std::string& bytes, const std::string& path, MeshSpace& space) {
+  Decoder d(bytes, path);
+  const int64_t nv = d.value<int64_t>(), nf = d.value<int64_t>(), na = d.value<int64_t>();
+  const int32_t s = d.value<int32_t>();
+  if (nv < 0 || nf < 0 || na < 0 || static_cast<uint64_t>(nv) * 24 + static_cast<uint64_t>(nf) * 12 > bytes.size())
+    throw IoError(path, "the reader's answer is malformed");
+  TriangleMesh m;
+  m.vertices.resize(nv, 3);
+  m.faces.resize(nf, 3);
+  for (int64_t v = 0; v < nv; ++v)
+    for (int c = 0; c < 3; ++c) m.vertices(v, c) = d.value<double>();
+  for (int64_t f = 0; f < nf; ++f)
+    for (int c = 0; c < 3; ++c) m.faces(f, c) = d.value<int32_t>();
+  for (int64_t a = 0; a < na; ++a) {
+    const int64_t len = d.value<int64_t>();
+    if (len < 0 || static_cast<uint64_t>(len) > bytes.size()) throw IoError(path, "the reader's answer is malformed");
+    const std::string name = d.text(static_cast<size_t>(len));
+    Eigen::VectorXd values(nv);
+    for (int64_t i = 0; i < nv; ++i) values[i] = d.value<double>();
+    m.pointData[name] = values;
+  }
+  space = s == 0 ? MeshSpace::LPS : MeshSpace::RAS;
+  return m;
+}
+
+/// Writes all of `bytes` to `fd` (the child's end of the pipe).
+void writeAll(int fd, const std::string& bytes) {
+  size_t at = 0;
+  while (at < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + at, bytes.size() - at);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;
+    at += static_cast<size_t>(n);
+  }
+}
+
+[[noreturn]] void runChild(int fd, const std::string& path, MeshSpace space,
+                           const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
+  const rlimit memory{static_cast<rlim_t>(kIsolatedReaderBytes), static_cast<rlim_t>(kIsolatedReaderBytes)};
+  const rlimit cpu{static_cast<rlim_t>(kIsolatedReaderSeconds), static_cast<rlim_t>(kIsolatedReaderSeconds)};
+  setrlimit(RLIMIT_AS, &memory);
+  setrlimit(RLIMIT_CPU, &cpu);
+  std::string answer;
+  try {
+    const TriangleMesh m = read(path, space);
+    answer = encode(m, space);
+  } catch (const IoError& e) {
+    answer = std::string(1, static_cast<char>(Answer::IoProblem)) + e.problem();
+  } catch (const std::bad_alloc&) {
+    answer = std::string(1, static_cast<char>(Answer::OutOfMemory));
+  } catch (const std::exception& e) {
+    answer = std::string(1, static_cast<char>(Answer::Other)) + e.what();
+  }
+  writeAll(fd, answer);
+  ::close(fd);
+  _exit(0);
+}
+
+}  // namespace
+
+TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const char* what,
+                                const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
+  int fds[2];
+  if (::pipe(fds) != 0)
+    throw IoError(path, std::string("cannot start the ") + what + " reader: " + std::strerror(errno));
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw IoError(path, std::string("cannot start the ") + what + " reader: " + std::strerror(errno));
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    runChild(fds[1], path, space, read);
+  }
+  ::close(fds[1]);
+  // Waits for the answer at most twice the CPU limit in wall time (a child blocked, not computing, is not stopped by
+  // that limit), then ends the child.
+  std::string bytes;
+  char buffer[1 << 16];
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2 * kIsolatedReaderSeconds);
+  bool late = false;
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    pollfd p{fds[0], POLLIN, 0};
+    const int ready = left.count() > 0 ? ::poll(&p, 1, static_cast<int>(left.count())) : 0;
+    if (ready < 0 && errno == EINTR) continue;
+    if (ready <= 0) {
+      late = true;
+      ::kill(pid, SIGKILL);
+      break;
+    }
+    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    bytes.append(buffer, static_cast<size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  const std::string reader = std::string("the ") + what + " reader";
+  if (late)
+    throw IoError(
+        path, reader + " gave no answer within " + std::to_string(2 * kIsolatedReaderSeconds) + " s (malformed file?)");
+  if (WIFSIGNALED(status)) {
+    const int sig = WTERMSIG(status);
+    if (sig == SIGXCPU || sig == SIGKILL)
+      throw IoError(path, reader + " ran for more than " + std::to_string(kIsolatedReaderSeconds) +
+                              " s on the file (malformed?)");
+    throw IoError(path, reader + " crashed on the file (" + strsignal(sig) + "): the file is malformed");
+  }
+  if (bytes.empty()) throw IoError(path, reader + " ended without an answer (the file is malformed)");
+  switch (static_cast<Answer>(bytes[0])) {
+    case Answer::Mesh:
+      return decode(bytes, path, space);
+    case Answer::IoProblem:
+      throw IoError(path, bytes.substr(1));
+    case Answer::OutOfMemory:
+      throw IoError(path, reader + " needed more than " + std::to_string(kIsolatedReaderBytes >> 30) +
+                              " GB for the file (malformed?)");
+    case Answer::Other:
+      throw IoError(path, "cannot read the file: " + bytes.substr(1));
+  }
+  throw IoError(path, reader + " gave an unknown answer");
+}
+
+}  // namespace msk::detail
