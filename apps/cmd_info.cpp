@@ -10,6 +10,7 @@
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/surface_quality.h"
 
 namespace msk::cli {
 namespace {
@@ -163,6 +164,14 @@ int infoVolume(const std::string& path, bool json, bool labels) {
   return 0;
 }
 
+/// Whether a closed mesh can be a template: "ok", "wound inward (...)" or "unusable: <problem>".
+std::string templateStatus(const TriangleMesh& m) {
+  const std::string problem = templateProblem(m);
+  if (!problem.empty()) return "unusable: " + problem;
+  if (enclosedVolume(m) < 0) return "wound inward (negative volume; a scene turns it outward)";
+  return "ok";
+}
+
 int infoMesh(const std::string& path, bool json) {
   MeshSpace space = MeshSpace::LPS;
   TriangleMesh m = readMesh(path, &space);
@@ -181,6 +190,7 @@ int infoMesh(const std::string& path, bool json) {
     Json arrays = Json::array();
     for (const auto& kv : m.pointData) arrays.push_back(kv.first);
     j["point_arrays"] = arrays;
+    j["as_template"] = templateStatus(m);
     std::cout << dumpJson(j, 2) << "\n";
     return 0;
   }
@@ -190,7 +200,8 @@ int infoMesh(const std::string& path, bool json) {
             << "volume        " << fmt(enclosedVolume(m) / 1000.0, 3) << " mL\n"
             << "area          " << fmt(surfaceArea(m), 1) << " mm^2\n"
             << "bounds (RAS)  (" << fmt(lo[0], 2) << ", " << fmt(lo[1], 2) << ", " << fmt(lo[2], 2) << ") .. ("
-            << fmt(hi[0], 2) << ", " << fmt(hi[1], 2) << ", " << fmt(hi[2], 2) << ") mm\n";
+            << fmt(hi[0], 2) << ", " << fmt(hi[1], 2) << ", " << fmt(hi[2], 2) << ") mm\n"
+            << "as a template " << templateStatus(m) << "\n";
   if (!m.pointData.empty()) {
     std::cout << "point arrays ";
     for (const auto& kv : m.pointData) std::cout << " " << kv.first;

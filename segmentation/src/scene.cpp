@@ -9,10 +9,12 @@
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
+#include "msk/core/log.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/segment_options.h"
 #include "msk/segmentation/surface_proximity.h"
+#include "msk/segmentation/surface_quality.h"
 
 namespace fs = std::filesystem;
 
@@ -398,7 +400,8 @@ std::map<std::pair<int, int>, size_t> parseCollisions(const Checker& check, cons
   return declared;
 }
 
-/// Reads every object's template (SPACE tag honoured, closedness checked), errors naming the object.
+/// Reads every object's template (SPACE tag honoured, closedness and templateProblem() checked), errors naming the
+/// object.
 void readTemplates(const Checker& check, Scene& scene) {
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     SceneObject& obj = scene.objects[i];
@@ -408,6 +411,13 @@ void readTemplates(const Checker& check, Scene& scene) {
       check.fail(objectWhere(i, obj.name), "template " + e.file() + ": " + e.problem());
     } catch (const Error& e) {
       check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + e.what());
+    }
+    const std::string problem = templateProblem(obj.templ);
+    if (!problem.empty()) check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + problem);
+    if (enclosedVolume(obj.templ) < 0) {
+      flipFaces(obj.templ);
+      log::warn(obj.name + " (template " + obj.templatePath +
+                "): the template is wound inward (negative enclosed volume); its faces were turned outward");
     }
   }
 }

@@ -3,6 +3,7 @@
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <string>
@@ -103,6 +104,23 @@ UnfoldReport unfoldSurface(TriangleMesh& mesh, int maxRounds) {
   for (size_t v = 0; v < ring.size(); ++v) rep.verticesMoved += moved[v];
   rep.maxMoveMm = ring.empty() ? 0.0 : (mesh.vertices - start).rowwise().norm().maxCoeff();
   return rep;
+}
+
+std::string templateProblem(const TriangleMesh& t) {
+  if (t.vertices.cwiseAbs().maxCoeff() > 1e6) return "coordinates beyond 1 km from the origin (not millimetres?)";
+  const double area = surfaceArea(t);
+  const double volume = enclosedVolume(t);
+  if (!(area > 0) || !(std::abs(volume) > 1e-9 * std::pow(area, 1.5)))
+    return "the surface encloses no volume (area " + std::to_string(area) + " mm², volume " + std::to_string(volume) +
+           " mm³)";
+  // A few crossing pairs are local folds, which the evolution smooths out (and remeshing removes); many mean surfaces
+  // through each other, whose inside is not defined.
+  const size_t crossing = selfIntersections(t);
+  const size_t allowed = std::max<size_t>(10, static_cast<size_t>(t.faceCount()) / 200);
+  if (crossing > allowed)
+    return "the surface crosses itself (" + std::to_string(crossing) + " pairs of faces; at most " +
+           std::to_string(allowed) + " local folds are accepted)";
+  return "";
 }
 
 }  // namespace msk

@@ -231,3 +231,38 @@ TEST(SegmentCli, ObjectNamesCannotLeaveTheOutputFolder) {
   EXPECT_FALSE(fs::exists(dir.file("escaped_femur.vtk")));
   EXPECT_FALSE(fs::exists(dir.file("a/escaped_femur.vtk")));
 }
+
+// A template wound inward (negative enclosed volume, as some tools write meshes) is turned outward with a warning and
+// gives the same result as the same template wound outward; a template whose surface crosses itself is refused.
+TEST(SegmentCli, InwardTemplatesAreTurnedAndCrossingOnesRefused) {
+  msk::test::ScratchDir dir;
+  msk::TriangleMesh femur = msk::readMesh(kSample + "template_femur.vtk");
+  msk::writeMesh(dir.file("outward.vtk"), femur);
+  msk::flipFaces(femur);
+  msk::writeMesh(dir.file("inward.vtk"), femur);
+  auto run = [&](const std::string& templ, const std::string& out) {
+    msk::writeJsonFile(dir.file(out + ".json"),
+                       msk::parseJson(R"({"objects": [{"name": "femur", "label": 1, "kind": "bone", "template": ")" +
+                                      templ + R"("}]})"));
+    return runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", dir.file(out + ".json"), "--out",
+                   dir.file(out), "--quality", "fast", "--no-qc"});
+  };
+  const msk::test::CliResult outward = run("outward.vtk", "a");
+  const msk::test::CliResult inward = run("inward.vtk", "b");
+  ASSERT_EQ(outward.exitCode, 0) << outward.err;
+  ASSERT_EQ(inward.exitCode, 0) << inward.err;
+  EXPECT_NE(inward.err.find("wound inward"), std::string::npos) << inward.err;
+  EXPECT_EQ(msk::test::readBytes(dir.file("a/labels.nii.gz")), msk::test::readBytes(dir.file("b/labels.nii.gz")));
+
+  // Two copies of the template, one shifted into the other: a closed surface that crosses itself.
+  msk::TriangleMesh twice = msk::readMesh(kSample + "template_femur.vtk");
+  const int nv = twice.vertexCount(), nf = twice.faceCount();
+  twice.vertices.conservativeResize(2 * nv, 3);
+  twice.faces.conservativeResize(2 * nf, 3);
+  twice.vertices.bottomRows(nv) = twice.vertices.topRows(nv).rowwise() + Eigen::RowVector3d(3, 0, 0);
+  twice.faces.bottomRows(nf) = twice.faces.topRows(nf).array() + nv;
+  twice.pointData.clear();
+  msk::writeMesh(dir.file("crossing.vtk"), twice);
+  msk::test::expectOneLineError(run("crossing.vtk", "c"), 1, "crossing.vtk", "crosses itself");
+  EXPECT_FALSE(fs::exists(dir.file("c")));
+}

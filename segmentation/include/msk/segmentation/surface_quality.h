@@ -20,6 +20,12 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices);
 /// intersection with exact predicates). 0 for a surface that is embedded. Throws Error if the mesh is not closed.
 size_t selfIntersections(const TriangleMesh& mesh);
 
+/// What makes a closed surface unusable as a template, or "": coordinates beyond ±1 km (not millimetres?), no enclosed
+/// volume (zero area, or flat), or faces that cross each other in more than max(10, 0.5 % of the faces) pairs (the
+/// inside of such a surface is not defined; fewer are local folds the evolution smooths out). A surface wound inward is
+/// usable: scenes turn it outward.
+std::string templateProblem(const TriangleMesh& mesh);
+
 /// What unfoldSurface() did.
 struct UnfoldReport {
   size_t before = 0, after = 0;  ///< self-intersecting face pairs before and after
