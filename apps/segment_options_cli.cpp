@@ -1,5 +1,7 @@
 // The options of `mskseg segment` that steer the segmentation (shared with `mskseg batch`, which forwards them),
 // bound into SegmentOptions; their ranges are checked once, by checkSegmentOptions().
+#include <cstdlib>
+
 #include "commands.h"
 #include "msk/core/solver.h"
 
@@ -11,16 +13,32 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
       "preset: fast = 1 level x 15 steps, tolerance 0.04 voxel, XPBD 2 substeps x 2 iterations; balanced (default) "
       "= 2 x 50, 0.02, Gauss-Seidel 1 x 1; accurate = 3 x 200, 0.004, XPBD 2 x 2, finest image scale 0.25 voxel "
       "(mskseg bench tradeoff measures them); the options below override it");
-  app.add_option("--levels", o.evolution.levels, "mesh resolution levels, x4 vertices apart, 0..5 (0: the preset's)");
-  app.add_option("--steps", o.evolution.maxStepsPerLevel, "step cap per level (0: the preset's)");
+  const CLI::Validator positive(
+      [](std::string& v) {
+        char* end = nullptr;
+        const double x = std::strtod(v.c_str(), &end);
+        if (v.empty() || *end != '\0') return std::string("must be a number");
+        return x > 0 ? std::string() : std::string("must be > 0 (leave the option out for the preset's)");
+      },
+      "> 0");
+  // Given, these take values that mean what they say (a 0 is refused, not replaced by the preset's); left out, the
+  // preset's apply.
+  app.add_option("--levels", o.evolution.levels,
+                 "mesh resolution levels, x4 vertices apart, 1..5 (default: the preset's)")
+      ->check(CLI::Range(1, 5));
+  app.add_option("--steps", o.evolution.maxStepsPerLevel, "step cap per level, >= 1 (default: the preset's)")
+      ->check(positive);
   addNumber(app, "--tolerance", o.evolution.toleranceMm,
-            "a level stops when no vertex moves more than this in a step, mm (0: the preset's)");
+            "a level stops when no vertex moves more than this in a step, mm, > 0 (default: the preset's)")
+      ->check(positive);
   app.add_option_function<std::string>(
       "--scheme", [&o](const std::string& s) { o.evolution.scheme = parseScheme(s, "--scheme"); },
       "gauss-seidel | coloured-gauss-seidel | jacobi | xpbd | explicit | implicit (default: the preset's; another "
       "scheme comes with the substeps x iterations it needs: jacobi 1x2, xpbd 2x2, explicit 4x1, others 1x1)");
-  app.add_option("--substeps", o.evolution.substeps, "substeps per step (0: the scheme's)");
-  app.add_option("--iterations", o.evolution.iterations, "projection sweeps per substep (0: the scheme's)");
+  app.add_option("--substeps", o.evolution.substeps, "substeps per step, >= 1 (default: the scheme's)")
+      ->check(positive);
+  app.add_option("--iterations", o.evolution.iterations, "projection sweeps per substep, >= 1 (default: the scheme's)")
+      ->check(positive);
   app.add_option("--threads", o.evolution.threads,
                  "threads of the coloured, Jacobi and CG schemes and of collision detection (0: all cores; default "
                  "1); results do not depend on it");

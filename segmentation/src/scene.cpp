@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -38,6 +39,13 @@ std::string joined(const std::vector<std::string>& words) {
   std::string s;
   for (const auto& w : words) s += (s.empty() ? "" : ", ") + w;
   return s;
+}
+
+/// A number as a message shows it (0.5, 10, 1e+300).
+std::string plain(double x) {
+  std::ostringstream out;
+  out << x;
+  return out.str();
 }
 
 /// A value as it appears in the file, shortened for messages.
@@ -92,19 +100,16 @@ class Checker {
     return store;
   }
   /// Range of an optional number.
-  enum class Range { UnitInterval, NonNegative, Positive };
-  /// An optional finite number member in `range`; `*store` set and true if present.
-  bool number(const Json& obj, const std::string& key, Range range, const std::string& where, double* store) const {
+  /// An optional finite number member in [lo, hi] ((lo, hi] if `lowOpen`), the range of its command-line twin;
+  /// `*store` set and true if present.
+  bool numberIn(const Json& obj, const std::string& key, double lo, double hi, bool lowOpen, const std::string& where,
+                double* store) const {
     const Json* v = jsonMember(obj, key);
     if (!v) return false;
-    const char* wanted = range == Range::UnitInterval  ? "a number in [0, 1]"
-                         : range == Range::NonNegative ? "a number >= 0"
-                                                       : "a number > 0";
     const double x = v->is_number() ? v->get<double>() : std::nan("");
-    const bool ok = std::isfinite(x) && (range == Range::UnitInterval  ? x >= 0 && x <= 1
-                                         : range == Range::NonNegative ? x >= 0
-                                                                       : x > 0);
-    if (!ok) fail(where, "\"" + key + "\" must be " + wanted + ", found " + shown(*v));
+    if (!(std::isfinite(x) && (lowOpen ? x > lo : x >= lo) && x <= hi))
+      fail(where, "\"" + key + "\" must be a number in " + (lowOpen ? "(" : "[") + plain(lo) + ", " + plain(hi) +
+                      "], found " + shown(*v));
     *store = x;
     return true;
   }
@@ -140,8 +145,7 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
       m.shapeMemory = v->get<std::string>() == "template" ? InternalMode::ShapeMemory : InternalMode::Smoothing;
     }
   }
-  const bool stiffness =
-      check.number(*model, "internal_stiffness", Checker::Range::UnitInterval, at, &m.internalStiffness);
+  const bool stiffness = check.numberIn(*model, "internal_stiffness", 0.0, 1.0, false, at, &m.internalStiffness);
   if (stiffness && !m.shapeMemory)
     check.fail(at, "\"internal_stiffness\" is given but \"shape_memory\" is false (no internal constraint)");
 
@@ -172,8 +176,8 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   }
 
   check.boolean(*model, "medial_axis", at, &m.medialAxis);
-  const bool radial = check.number(*model, "radial_stiffness", Checker::Range::UnitInterval, at, &m.radialStiffness);
-  const bool spacing = check.number(*model, "axis_spacing_mm", Checker::Range::Positive, at, &m.axisSpacingMm);
+  const bool radial = check.numberIn(*model, "radial_stiffness", 0.0, 1.0, false, at, &m.radialStiffness);
+  const bool spacing = check.numberIn(*model, "axis_spacing_mm", 0.5, 100.0, false, at, &m.axisSpacingMm);
   if ((radial || spacing) && !m.medialAxis)
     check.fail(at, std::string("\"") + (radial ? "radial_stiffness" : "axis_spacing_mm") +
                        "\" is given but the object has no medial axis (set \"medial_axis\": true)");
@@ -189,7 +193,7 @@ ObjectModel parseModel(const Checker& check, const Json& o, const std::string& w
   if (check.boolean(*model, "remesh", at, &remesh)) m.remesh = remesh;
 
   check.boolean(*model, "volumetric", at, &m.volumetric);
-  if (check.number(*model, "volume_stiffness", Checker::Range::UnitInterval, at, &m.volumeStiffness) && !m.volumetric)
+  if (check.numberIn(*model, "volume_stiffness", 0.0, 1.0, false, at, &m.volumeStiffness) && !m.volumetric)
     check.fail(at, "\"volume_stiffness\" is given but the object has no volume model (set \"volumetric\": true)");
   return m;
 }
@@ -251,9 +255,10 @@ void parseProfileSource(const Checker& check, const Json& o, const std::string& 
 
 /// The optional pair parameters of a collision entry (object form) into `p`.
 void parsePairParameters(const Checker& check, const Json& e, const std::string& where, CollisionPair& p) {
-  check.number(e, "gap_mm", Checker::Range::NonNegative, where, &p.gapMm);
-  check.number(e, "proximity_mm", Checker::Range::Positive, where, &p.proximityMm);
-  check.number(e, "friction", Checker::Range::UnitInterval, where, &p.friction);
+  // The ranges of --collision-gap and --collision-proximity.
+  check.numberIn(e, "gap_mm", 0.0, 10.0, false, where, &p.gapMm);
+  check.numberIn(e, "proximity_mm", 0.0, 50.0, true, where, &p.proximityMm);
+  check.numberIn(e, "friction", 0.0, 1.0, false, where, &p.friction);
   if (const int m = check.choice(e, "mode", {"position", "velocity", "acceleration"}, where, false); m >= 0)
     p.mode = static_cast<CollisionMode>(m);
   if (const int t = check.choice(e, "target", {"spring", "reaction", "reference"}, where, false); t >= 0)
@@ -360,7 +365,7 @@ std::map<std::pair<int, int>, size_t> parseCollisions(const Checker& check, cons
           check.fail(where, "a second \"auto\" entry (also collisions[" + std::to_string(autoEntry) + "]): keep one");
         wantAuto = true;
         autoEntry = c;
-        check.number(e, "within_mm", Checker::Range::NonNegative, where, &autoWithinMm);
+        check.numberIn(e, "within_mm", 0.0, 100.0, false, where, &autoWithinMm);
         parsePairParameters(check, e, where, autoParameters);
         continue;
       }

@@ -266,3 +266,15 @@ TEST(SegmentCli, InwardTemplatesAreTurnedAndCrossingOnesRefused) {
   msk::test::expectOneLineError(run("crossing.vtk", "c"), 1, "crossing.vtk", "crosses itself");
   EXPECT_FALSE(fs::exists(dir.file("c")));
 }
+
+// A 0 given to an option whose default is the preset's is refused, not replaced by the preset's value; a scene's
+// collision gap has the range of --collision-gap.
+TEST(SegmentCli, ExplicitZerosAreRefusedNotReplaced) {
+  msk::test::ScratchDir dir;
+  for (const char* option : {"--steps", "--levels", "--tolerance", "--substeps", "--iterations"}) {
+    const msk::test::CliResult r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
+                                           kSample + "scene.json", "--out", dir.file("out"), option, "0"});
+    msk::test::expectOneLineError(r, 2, option, option);
+    EXPECT_FALSE(fs::exists(dir.file("out"))) << option;
+  }
+}
