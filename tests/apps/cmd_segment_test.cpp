@@ -278,3 +278,13 @@ TEST(SegmentCli, ExplicitZerosAreRefusedNotReplaced) {
     EXPECT_FALSE(fs::exists(dir.file("out"))) << option;
   }
 }
+
+// A run whose requested work would take hours is refused up front with the estimate, not started.
+TEST(SegmentCli, AbsurdWorkIsRefusedWithTheEstimate) {
+  msk::test::ScratchDir dir;
+  const msk::test::CliResult r =
+      runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", kSample + "scene.json", "--out",
+              dir.file("out"), "--substeps", "1000", "--iterations", "1000"});
+  msk::test::expectOneLineError(r, 2, "--substeps", "hours");
+  EXPECT_FALSE(fs::exists(dir.file("out")));
+}
