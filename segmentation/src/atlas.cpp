@@ -297,7 +297,6 @@ ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const Im
   } catch (const Error& e) {
     op.note = std::string("its own registration failed: ") + e.what();
   }
-  op.scale = std::cbrt(std::abs(op.transform.topLeftCorner<3, 3>().determinant()));
   op.seconds = since(t0);
   return op;
 }
@@ -327,7 +326,6 @@ void keepPairsApart(const Atlas& atlas, Placement& p) {
       ObjectPlacement& o = p.objects[i];
       share[i] = share[i] > 0.2 ? 0.5 * share[i] : 0.0;
       o.transform = p.global + share[i] * (own[i] - p.global);
-      o.scale = std::cbrt(std::abs(o.transform.topLeftCorner<3, 3>().determinant()));
       if (share[i] == 0.0) {
         o.registered = false;
         o.note = "its own registration brought it into a collision partner";
@@ -371,7 +369,6 @@ Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementO
       ObjectPlacement op;
       op.name = obj.name;
       op.transform = p.global;
-      op.scale = std::cbrt(std::abs(p.global.topLeftCorner<3, 3>().determinant()));
       p.objects.push_back(op);
     }
   }
@@ -443,7 +440,7 @@ Json placementJson(const Placement& placement) {
     oj["metric_after"] = o.metricAfter;
     oj["move_from_global_degrees"] = o.moveDegrees;
     oj["move_from_global_mm"] = o.moveMm;
-    oj["scale"] = o.scale;
+    oj["scale"] = std::cbrt(std::abs(o.transform.topLeftCorner<3, 3>().determinant()));
     oj["seconds"] = o.seconds;
     objects.push_back(oj);
   }

@@ -86,7 +86,6 @@ struct ObjectPlacement {
   bool keptOutOfPartner = false;             ///< its own registration was undone to keep it out of a collision partner
   double metricBefore = 0, metricAfter = 0;  ///< its neighbourhood's metric at the global and at its own placement
   double moveDegrees = 0, moveMm = 0;        ///< its own placement against the global one (at its template centre)
-  double scale = 1;                          ///< cube root of |det| of its transform
   double seconds = 0;
 };
 
