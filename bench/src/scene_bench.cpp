@@ -36,8 +36,9 @@ std::map<std::string, double> familySeconds(const SegmentationResult& res) {
   for (const ObjectResult& o : res.objects)
     for (const auto& [family, s] : o.secondsPerFamily) perObject[family].push_back(s);
   for (const auto& [family, values] : perObject) {
+    const double first = values.front();
     const bool shared = values.size() == res.objects.size() && values.size() > 1 &&
-                        std::all_of(values.begin(), values.end(), [&](double v) { return v == values.front(); });
+                        std::all_of(values.begin(), values.end(), [first](double v) { return v == first; });
     double sum = 0;
     for (double v : values) sum += v;
     families[family] = shared ? values.front() : sum;

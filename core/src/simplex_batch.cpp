@@ -414,7 +414,7 @@ constexpr int kHalfLanes = 4;
 #endif
 namespace lanes16 {
 struct D8 {
-  static constexpr int lanes = 8;
+  [[maybe_unused]] static constexpr int lanes = 8;
   __m512d v;
 };
 inline __m512i bitsOf(D8 a) { return _mm512_castpd_si512(a.v); }
@@ -447,9 +447,7 @@ inline D8 flipSign(D8 a, D8 s) {
   return fromBits(_mm512_xor_si512(bitsOf(a), _mm512_and_si512(bitsOf(s), _mm512_set1_epi64(INT64_MIN))));
 }
 inline int bits(M8 m) { return m.k; }
-/// The 4-lane halves of a pack and back.
-inline lanes4::D4 lo(D8 a) { return {_mm512_castpd512_pd256(a.v)}; }
-inline lanes4::D4 hi(D8 a) { return {_mm512_extractf64x4_pd(a.v, 1)}; }
+/// A pack from two 4-lane halves.
 inline D8 join(lanes4::D4 l, lanes4::D4 h) {
   return {_mm512_shuffle_f64x2(_mm512_zextpd256_pd512(l.v), _mm512_zextpd256_pd512(h.v), 0x44)};
 }

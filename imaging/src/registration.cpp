@@ -240,8 +240,9 @@ std::vector<Eigen::Vector3d> scanTranslations(Pyramid& p, const Eigen::Matrix4d&
       }
   std::stable_sort(scored.begin(), scored.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<Eigen::Vector3d> out;
-  for (const auto& [sc, y] : scored) {
+  for (const auto& entry : scored) {
     if (static_cast<int>(out.size()) == kScanKeep) break;
+    const Eigen::Vector3d& y = entry.second;
     if (std::all_of(out.begin(), out.end(), [&](const Eigen::Vector3d& o) { return (o - y).norm() >= 2 * step; }))
       out.push_back(y);
   }

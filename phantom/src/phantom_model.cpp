@@ -241,16 +241,16 @@ Anatomy drawAnatomy(uint32_t seed) {
 }
 
 void perturbAnatomy(Anatomy& a, Random& rng) {
-  a.femurBase += Eigen::Vector2d(rng.uniform(-4, 4), rng.uniform(-4, 4));
-  a.femurTilt += Eigen::Vector2d(rng.uniform(-0.02, 0.02), rng.uniform(-0.02, 0.02));
-  a.femurBow += Eigen::Vector2d(rng.uniform(-1.5, 1.5), rng.uniform(-2, 2));
+  a.femurBase += rng.uniform2(-4, 4, -4, 4);
+  a.femurTilt += rng.uniform2(-0.02, 0.02, -0.02, 0.02);
+  a.femurBow += rng.uniform2(-1.5, 1.5, -2, 2);
   a.femurBottom += rng.uniform(-3, 3);
   a.femurTop += rng.uniform(-3, 3);
   a.shaftRadius += rng.uniform(-0.8, 0.8);
   a.radiusWavePhase = rng.uniform(0, 2 * M_PI);
   a.flare += rng.uniform(-1, 1);
   a.flareLength += rng.uniform(-5, 5);
-  a.envelopeOffset += Eigen::Vector2d(rng.uniform(-2, 2), rng.uniform(-2, 2));
+  a.envelopeOffset += rng.uniform2(-2, 2, -2, 2);
   a.envelopeCentreZ += rng.uniform(-3, 3);
   a.envelopeHalfLength += rng.uniform(-3, 3);
   a.envelopeRadiusX += rng.uniform(-2, 2);

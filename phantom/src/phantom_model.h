@@ -23,6 +23,17 @@ class Random {
   double uniform(double a, double b) { return a + (b - a) * uniform(); }
   /// Standard normal (Box–Muller, both values of a pair used in turn).
   double normal();
+  /// (uniform(a0, b0), uniform(a1, b1)), the second drawn first: every compiler then makes the same anatomy for a
+  /// seed (the order of a call's arguments is unspecified), the one the bundled samples were made with.
+  Eigen::Vector2d uniform2(double a0, double b0, double a1, double b1) {
+    const double y = uniform(a1, b1);
+    return {uniform(a0, b0), y};
+  }
+  /// Three standard normals, the last drawn first (as uniform2()).
+  Eigen::Vector3d normal3() {
+    const double z = normal(), y = normal();
+    return {normal(), y, z};
+  }
 
  private:
   std::mt19937 gen_;

@@ -55,7 +55,7 @@ struct BiasField {
   explicit BiasField(uint32_t seed) {
     Random rng(seed);
     for (size_t j = 0; j < 3; ++j) {
-      Eigen::Vector3d d(rng.normal(), rng.normal(), rng.normal());
+      Eigen::Vector3d d = rng.normal3();
       if (d.norm() < 1e-6) d = Eigen::Vector3d::UnitX();
       k[j] = d.normalized() * (2 * M_PI / rng.uniform(250, 450));
       phase[j] = rng.uniform(0, 2 * M_PI);

@@ -288,8 +288,13 @@ TEST(ClosestPoint, EveryVoronoiRegion) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(-1, 1);
   for (int trial = 0; trial < 200; ++trial) {
-    const Vec3 ta(u(rng), u(rng), u(rng)), tb(u(rng), u(rng), u(rng)), tc(u(rng), u(rng), u(rng));
-    const Vec3 p(2 * u(rng), 2 * u(rng), 2 * u(rng));
+    // One by one, z, y, x within each vector (the order of a call's arguments is unspecified).
+    auto draw = [&](double scale) {
+      const double z = u(rng), y = u(rng), x = u(rng);
+      return Vec3(scale * x, scale * y, scale * z);
+    };
+    const Vec3 ta = draw(1), tb = draw(1), tc = draw(1);
+    const Vec3 p = draw(2);
     Vec3 bary;
     const Vec3 q = msk::closestPointOnTriangle(p, ta, tb, tc, &bary);
     EXPECT_LT((bary[0] * ta + bary[1] * tb + bary[2] * tc - q).norm(), 1e-12);

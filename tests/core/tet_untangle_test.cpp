@@ -26,7 +26,11 @@ msk::TetMesh scrambled(const msk::TetMesh& rest, const std::vector<char>& movabl
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-amplitude, amplitude);
   for (int i = 0; i < m.nodeCount(); ++i)
-    if (movable[static_cast<size_t>(i)]) m.nodes.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+    if (movable[static_cast<size_t>(i)]) {
+      // Drawn one by one (the order of a call's arguments is unspecified): z, y, x, as the suite's figures were made.
+      const double z = u(rng), y = u(rng), x = u(rng);
+      m.nodes.row(i) += Eigen::RowVector3d(x, y, z);
+    }
   return m;
 }
 

@@ -732,7 +732,9 @@ TEST(NiftiBadInput, BadDimensions) {
 
 TEST(NiftiBadInput, UnsupportedDatatypesAreNamed) {
   ScratchDir dir;
-  for (const auto& [code, name] : {std::pair<int, const char*>{128, "RGB24"}, {32, "COMPLEX64"}, {1024, "INT64"}}) {
+  for (const auto& entry : {std::pair<int, const char*>{128, "RGB24"}, {32, "COMPLEX64"}, {1024, "INT64"}}) {
+    const int code = entry.first;
+    const char* name = entry.second;
     const std::string path = writeSample(dir, std::string(name) + ".nii");
     patch(path, [&](std::string& b) { setCode(b, kV1, kV1.datatype, code); });
     expectIoError([&] { msk::readNifti<float>(path); }, path, std::string("unsupported datatype ") + name);

@@ -60,7 +60,10 @@ TEST(Tetrahedralize, FeedsVolumeSimplexModel) {
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> u(-0.1 * diag / std::sqrt(3.0), 0.1 * diag / std::sqrt(3.0));
   msk::Points p = rest;
-  for (int i = 0; i < vm.tetCount(); ++i) p.row(i) += Eigen::RowVector3d(u(rng), u(rng), u(rng));
+  for (int i = 0; i < vm.tetCount(); ++i) {
+    const double z = u(rng), y = u(rng), x = u(rng);  // one by one: z, y, x, as the test's figures were made
+    p.row(i) += Eigen::RowVector3d(x, y, z);
+  }
   Eigen::VectorXd w = Eigen::VectorXd::Ones(vm.vertexCount());
   w.tail(vm.ghostCount()).setZero();
   msk::VolumeSimplexConstraints c(vm, 1.0);
