@@ -160,6 +160,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
 
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
+  if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
   Scene scene;
   std::optional<Placement> placement;
   if (atlasOpt->count()) {
@@ -174,6 +175,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   } else {
     scene = loadScene(scenePath);
   }
+  if (const std::string problem = coverageProblem(image.grid, scene); !problem.empty())
+    throw IoError(imagePath, problem);
   SegmentationResult res = segmentScene(image, scene, opts, stderrProgress("segment"));
   if (placement) judgePlacement(*placement, res);
 

@@ -52,6 +52,10 @@ PY
 run() {  # NAME IMAGE SCENE
   rm -rf "$out/$1"
   "$exe" segment --image "$2" --scene "$3" --out "$out/$1" --quality "$quality" --no-qc > "$out/$1.log" 2>&1 || true
+  if [ ! -f "$out/$1/report.json" ]; then  # refused before any work (a constant image, templates outside it)
+    echo "== $1: refused: $(tail -1 "$out/$1.log")"
+    return
+  fi
   python3 - "$1" "$out/$1/report.json" <<'PY'
 import json, sys
 r = json.load(open(sys.argv[2]))

@@ -101,6 +101,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   checkTemplateOptions(opts.templates);
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
+  if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
   const LabelMap labels = readNifti<int32_t>(labelsPath);
   if (!labels.grid.sameGeometry(image.grid, 1e-3))
     throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include "msk/core/error.h"
@@ -19,11 +20,11 @@ using namespace detail;
 
 /// Throws Error for an image or scene no run can use.
 void checkInput(const ImageF& image, const Scene& scene) {
-  const std::string gridProblem = image.grid.problem();
-  if (!gridProblem.empty()) throw Error("image: " + gridProblem);
-  for (float v : image.data)
-    if (!std::isfinite(v)) throw Error("image has NaN/Inf voxels");
+  const std::string problem = imageProblem(image);
+  if (!problem.empty()) throw Error("image: " + problem);
   if (scene.objects.empty()) throw Error("scene has no objects");
+  const std::string coverage = coverageProblem(image.grid, scene);
+  if (!coverage.empty()) throw Error("image: " + coverage);
 }
 
 /// Refuses a run whose requested work is absurd before it starts: an estimate of its time from its vertex-steps (each
@@ -119,6 +120,54 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
 }
 
 }  // namespace
+
+std::string imageProblem(const ImageF& image) {
+  const std::string gridProblem = image.grid.problem();
+  if (!gridProblem.empty()) return gridProblem;
+  if (image.data.empty()) return "no voxels";
+  size_t nonFinite = 0;
+  for (float v : image.data) nonFinite += std::isfinite(v) ? 0 : 1;
+  if (nonFinite > 0) return std::to_string(nonFinite) + " NaN/Inf voxels";
+  const auto [lo, hi] = std::minmax_element(image.data.begin(), image.data.end());
+  if (*lo == *hi) {
+    std::ostringstream value;
+    value << *lo;
+    return "every voxel is " + value.str() + ": a constant image has no edge for a surface to find";
+  }
+  return "";
+}
+
+std::vector<double> templateShareInImage(const Grid& grid, const Scene& scene) {
+  std::vector<double> shares;
+  for (const SceneObject& o : scene.objects) {
+    const int n = o.templ.vertexCount();
+    int inside = 0;
+    for (int v = 0; v < n; ++v) {
+      const Eigen::Vector3d ijk = grid.toVoxel(o.templ.vertices.row(v).transpose());
+      bool in = true;
+      for (int a = 0; a < 3; ++a) in = in && ijk[a] >= -0.5 && ijk[a] <= grid.dims[a] - 0.5;
+      inside += in ? 1 : 0;
+    }
+    shares.push_back(n > 0 ? static_cast<double>(inside) / n : 0.0);
+  }
+  return shares;
+}
+
+std::string coverageProblem(const Grid& grid, const Scene& scene) {
+  const std::vector<double> shares = templateShareInImage(grid, scene);
+  std::string problem;
+  for (size_t i = 0; i < shares.size(); ++i) {
+    if (shares[i] >= kMinTemplateShareInImage) continue;
+    std::ostringstream s;
+    s << (problem.empty() ? "" : "; ") << scene.objects[i].name << ": " << std::lround(100 * shares[i])
+      << " % of its template lies inside the image";
+    problem += s.str();
+  }
+  if (problem.empty()) return "";
+  return problem + " (at least " + std::to_string(std::lround(100 * kMinTemplateShareInImage)) +
+         " % must): the templates are not where these structures are in this image's world coordinates (place them "
+         "there, or segment with --atlas)";
+}
 
 SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
                                 const ProgressFn& progress) {

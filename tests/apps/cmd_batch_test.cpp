@@ -1,10 +1,13 @@
 // mskseg batch end to end: every case of a cohort folder, per-case failures, resuming, the summary tables.
 #include <gtest/gtest.h>
+#include <signal.h>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "msk/imaging/json.h"
@@ -178,8 +181,9 @@ TEST(BatchCli, ImagePatternsFindOneFilePerCase) {
   EXPECT_NE(rows[3][12].find("no file matches"), std::string::npos) << rows[3][12];
 }
 
-// A case whose segmentation cannot have worked (a constant image) ends ok as a process, its outputs written, and the
-// summary's quality column says "failed"; batch.json counts it and the batch's exit code stays 0.
+// A case whose segmentation cannot have worked (flat but for one corner voxel: no edge) ends ok as a process, its
+// outputs written, and the summary's quality column says "failed"; batch.json counts it and the batch's exit code stays
+// 0.
 TEST(BatchCli, SummaryHasTheQualityStatusOfEachCase) {
   msk::test::ScratchDir dir;
   const std::string cases = dir.file("cases"), out = dir.file("out");
@@ -187,6 +191,7 @@ TEST(BatchCli, SummaryHasTheQualityStatusOfEachCase) {
   msk::NiftiInfo info;
   msk::ImageF image = msk::readNifti<float>(kSample + "image.nii.gz", &info);
   std::fill(image.data.begin(), image.data.end(), 300.f);
+  image.at(0, 0, 0) = 0.f;  // one dark corner voxel, far from the templates: not constant, yet no edge to find
   msk::NiftiWriteOptions wo;
   wo.like = &info;
   msk::writeNifti(cases + "/flat/image.nii.gz", image, msk::DataType::Int16, wo);
@@ -200,4 +205,85 @@ TEST(BatchCli, SummaryHasTheQualityStatusOfEachCase) {
   EXPECT_EQ(rows[1][1], "ok");
   EXPECT_EQ(rows[1][2], "failed");
   EXPECT_EQ(msk::readJsonFile(out + "/batch.json").at("cases").at("quality_failed").get<int>(), 1);
+}
+
+namespace {
+/// Waits until `path` exists (at most `seconds`).
+bool waitForFile(const std::string& path, double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!fs::exists(path)) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return true;
+}
+
+/// Waits until no process mentions `text` (at most `seconds`); returns those still there.
+std::vector<int> waitForNoProcess(const std::string& text, double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  std::vector<int> left;
+  while (!(left = msk::test::processesMentioning(text)).empty() && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  return left;
+}
+
+/// Two sample cases, each long enough (a step cap of 50,000 that no tolerance ends early) to be caught running.
+std::vector<std::string> slowBatch(const msk::test::ScratchDir& dir, const std::string& cases, const std::string& out) {
+  sampleCase(cases + "/p01");
+  sampleCase(cases + "/p02");
+  return {"batch",     "--cases", cases,         "--scene",   femurScene(dir.file("scene.json"), "femur"),
+          "--out",     out,       "--",          "--quality", "fast",
+          "--steps",   "50000",   "--tolerance", "1e-9",      "--no-qc",
+          "--threads", "1"};
+}
+}  // namespace
+
+// SIGTERM stops a batch: the running case ends and leaves nothing half-written, the next is not started, the summary
+// says so, the exit code is 128 + 15, and no case process is left behind.
+TEST(BatchCli, TermStopsTheRunningCasesAndWritesTheSummary) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  const auto args = slowBatch(dir, cases, out);
+  const msk::test::CliProcess batch = msk::test::startCli(args, dir.file("stdout"), dir.file("stderr"));
+  ASSERT_TRUE(waitForFile(out + "/logs/p01.log", 60));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ::kill(batch.pid, SIGTERM);
+  EXPECT_EQ(msk::test::waitCli(batch, 30), 128 + SIGTERM) << msk::test::readBytes(batch.errFile);
+  EXPECT_TRUE(waitForNoProcess(cases, 10).empty()) << "a case outlived its batch";
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[1][1], "failed");
+  EXPECT_NE(rows[1].back().find("asked to stop"), std::string::npos) << rows[1].back();
+  EXPECT_EQ(rows[2][1], "not-started");
+  for (const auto& e : fs::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().find(".p01.partial"), std::string::npos) << e.path();
+  EXPECT_FALSE(fs::exists(out + "/p01"));
+  EXPECT_NE(msk::test::readBytes(batch.errFile).find("stopped by signal 15"), std::string::npos);
+}
+
+// A batch killed outright (SIGKILL, no chance to clean up) takes its running case with it; a batch started on the
+// same output folder while another runs leaves the other's case alone and runs the rest.
+TEST(BatchCli, KilledBatchLeavesNoOrphanAndConcurrentBatchesShareTheCases) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  const auto args = slowBatch(dir, cases, out);
+  const msk::test::CliProcess first = msk::test::startCli(args, dir.file("stdout"), dir.file("stderr"));
+  ASSERT_TRUE(waitForFile(out + "/logs/p01.log", 60));
+  std::vector<std::string> second(args.begin(), std::find(args.begin(), args.end(), std::string("--")));
+  second.insert(second.end(), {"--", "--quality", "fast", "--no-qc"});
+  const auto r = runCli(second);
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("p01: elsewhere: another batch"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out + "/p02/report.json")) << r.err;
+  EXPECT_FALSE(fs::exists(out + "/p01/report.json"));
+
+  ::kill(first.pid, SIGKILL);
+  EXPECT_EQ(msk::test::waitCli(first, 30), 128 + SIGKILL);
+  EXPECT_TRUE(waitForNoProcess(cases, 10).empty()) << "a case outlived its batch";
+  // A rerun finds p01 free again (the claim went with the killed batch) and removes what it had half-written.
+  const auto rerun = runCli(second);
+  EXPECT_EQ(rerun.exitCode, 0) << rerun.err;
+  EXPECT_TRUE(fs::exists(out + "/p01/report.json")) << rerun.err;
+  for (const auto& e : fs::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
 }

@@ -81,17 +81,20 @@ TEST(SegmentCli, WritesMeshesLabelsReportAndPictures) {
 // A segmentation that cannot have worked (a constant image: no boundary anywhere) still writes its outputs and exits
 // 0, but report.json says "failed" per object (with the reasons) and for the case, stderr has a warning line for the
 // object and one for the case, and the summary on stdout says so.
+// An image flat but for one corner voxel has no edge a surface could lock onto: the run goes through, and says it
+// failed.
 TEST(SegmentCli, FailedSegmentationIsReportedAndWarnedButWritten) {
   msk::test::ScratchDir dir;
   msk::NiftiInfo info;
   msk::ImageF image = msk::readNifti<float>(kSample + "image.nii.gz", &info);
   std::fill(image.data.begin(), image.data.end(), 300.f);
-  const std::string constant = dir.file("constant.nii.gz"), out = dir.file("out");
+  image.at(0, 0, 0) = 0.f;  // one dark corner voxel, far from the templates: not constant, yet no edge to find
+  const std::string flat = dir.file("flat.nii.gz"), out = dir.file("out");
   msk::NiftiWriteOptions wo;
   wo.like = &info;
-  msk::writeNifti(constant, image, msk::DataType::Int16, wo);
-  const auto r = runCli(
-      {"segment", "--image", constant, "--scene", femurScene(dir), "--out", out, "--quality", "fast", "--no-qc"});
+  msk::writeNifti(flat, image, msk::DataType::Int16, wo);
+  const auto r =
+      runCli({"segment", "--image", flat, "--scene", femurScene(dir), "--out", out, "--quality", "fast", "--no-qc"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_TRUE(fs::exists(out + "/femur.vtk"));
   const msk::Json rep = msk::readJsonFile(out + "/report.json");
@@ -103,6 +106,34 @@ TEST(SegmentCli, FailedSegmentationIsReportedAndWarnedButWritten) {
   EXPECT_NE(r.err.find("femur: segmentation failed ("), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("case: segmentation failed"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("status failed"), std::string::npos) << r.out;
+}
+
+// An image that cannot carry any segmentation (one value everywhere), or one the templates do not lie in (another
+// subject's world coordinates, another region), is refused before any work, naming the image, and nothing is written.
+TEST(SegmentCli, ImagesThatCannotCarryASegmentationAreRefused) {
+  msk::test::ScratchDir dir;
+  msk::NiftiInfo info;
+  const msk::ImageF sample = msk::readNifti<float>(kSample + "image.nii.gz", &info);
+  msk::NiftiWriteOptions wo;
+  wo.like = &info;
+  const std::string out = dir.file("out");
+  for (float value : {0.f, 300.f}) {
+    msk::ImageF image = sample;
+    std::fill(image.data.begin(), image.data.end(), value);
+    const std::string path = dir.file("constant.nii.gz");
+    msk::writeNifti(path, image, msk::DataType::Int16, wo);
+    const auto r = runCli({"segment", "--image", path, "--scene", femurScene(dir), "--out", out, "--quality", "fast"});
+    msk::test::expectOneLineError(r, 1, "constant.nii.gz", "constant image");
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // The same image 400 mm away along z: the femur template no longer lies in it.
+  msk::ImageF moved = sample;
+  moved.grid.origin.z() += 400;
+  const std::string path = dir.file("moved.nii.gz");
+  msk::writeNifti(path, moved, msk::DataType::Int16);
+  const auto r = runCli({"segment", "--image", path, "--scene", femurScene(dir), "--out", out, "--quality", "fast"});
+  msk::test::expectOneLineError(r, 1, "moved.nii.gz", "femur: 0 % of its template lies inside the image");
+  EXPECT_FALSE(fs::exists(out));
 }
 
 // A muscle's template is remeshed before the evolution (its output then has about the template's vertex count on

@@ -58,13 +58,16 @@ TEST(SegmenterExtremes, VeryAnisotropicVoxels) {
   EXPECT_LT(r, 11.0);  // and not through it
 }
 
-// A constant image has no edges: nothing pulls, the template stays where it is.
-TEST(SegmenterExtremes, ConstantImageLeavesTheTemplateInPlace) {
+// A constant image is refused before any work; one flat but for a corner voxel has no edge near the template:
+// nothing pulls, the template stays where it is.
+TEST(SegmenterExtremes, FlatImageLeavesTheTemplateInPlace) {
   const msk::Grid g = boxGrid({1.0, 1.0, 1.0}, {16, 16, 16});
-  const msk::ImageF img(g, 500.f);
+  msk::ImageF img(g, 500.f);
   const msk::SegmentOptions o = quickOptions(2, 20);
+  EXPECT_THROW(msk::segmentScene(img, ballScene(msk::makeIcosphere(10.0, 3)), o), msk::Error);
+  img.at(0, 0, 0) = 0.f;
   const msk::SegmentationResult res = msk::segmentScene(img, ballScene(msk::makeIcosphere(10.0, 3)), o);
-  expectSane(res, o, 0.5, "constant image");
+  expectSane(res, o, 0.5, "flat image");
   EXPECT_EQ(res.status, msk::QualityStatus::Failed) << "no edge: the quality check says so";
 }
 

@@ -178,6 +178,32 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);
 }
 
+// An image with one value everywhere, or one the template does not lie in, is refused before any work: the problem
+// says why and names the object; a template half out of the image is still accepted.
+TEST(Segmenter, RefusesConstantImagesAndTemplatesOutsideTheImage) {
+  const msk::Grid g = cubeGrid(2.0, 10);
+  msk::ImageF img(g, 0.f);
+  const msk::Scene s = oneObjectScene(msk::makeIcosphere(5, 2));
+  EXPECT_NE(msk::imageProblem(img).find("every voxel is 0"), std::string::npos) << msk::imageProblem(img);
+  EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
+  img.data[7] = 1.f;
+  EXPECT_EQ(msk::imageProblem(img), "");
+  EXPECT_EQ(msk::templateShareInImage(g, s), std::vector<double>{1.0});
+  EXPECT_EQ(msk::coverageProblem(g, s), "");
+
+  msk::Scene far = oneObjectScene(msk::makeIcosphere(5, 2, {0, 0, 40}));
+  EXPECT_EQ(msk::templateShareInImage(g, far), std::vector<double>{0.0});
+  EXPECT_NE(msk::coverageProblem(g, far).find("ball: 0 % of its template lies inside the image"), std::string::npos)
+      << msk::coverageProblem(g, far);
+  EXPECT_THROW(msk::segmentScene(img, far, {}), msk::Error);
+
+  const msk::Scene half = oneObjectScene(msk::makeIcosphere(5, 2, {0, 0, 10}));  // centred on the image's face
+  const double share = msk::templateShareInImage(g, half)[0];
+  EXPECT_GT(share, 0.4);
+  EXPECT_LT(share, 0.6);
+  EXPECT_EQ(msk::coverageProblem(g, half), "");
+}
+
 // The --quality presets map to the settings docs/method.md and `mskseg segment --help` document, and explicit scheme
 // settings override them; bad scheme settings are refused.
 TEST(Segmenter, QualityPresetsMapToTheDocumentedSettings) {

@@ -110,8 +110,25 @@ struct SegmentationResult {
   QualityStatus status = QualityStatus::Ok;  ///< the worst object's quality status
 };
 
+/// Why `image` cannot carry any segmentation, or empty: an invalid grid, NaN/Inf voxels, or one value everywhere (no
+/// edge for a surface to find).
+std::string imageProblem(const ImageF& image);
+
+/// Share of each object's template vertices inside the image's field of view (voxel-centre hull grown by half a
+/// voxel), in scene order.
+std::vector<double> templateShareInImage(const Grid& grid, const Scene& scene);
+
+/// Least share of an object's template that must lie inside the image: below it the template is not where that
+/// structure is in this image (another subject's world coordinates, another region), and the run is refused.
+constexpr double kMinTemplateShareInImage = 0.25;
+
+/// Why the scene cannot be segmented in an image on `grid`, or empty: an object whose template lies mostly outside
+/// the image (templateShareInImage() < kMinTemplateShareInImage), named with its share.
+std::string coverageProblem(const Grid& grid, const Scene& scene);
+
 /// Segments every object of the scene in `image` (RAS mm). Throws ParameterError for options out of range
-/// (checkSegmentOptions()) and Error on bad input (NaN voxels, an invalid grid, an empty scene) before doing any work.
+/// (checkSegmentOptions()) and Error on bad input (imageProblem(), coverageProblem(), an empty scene) before doing
+/// any work.
 SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
                                 const ProgressFn& progress = {});
 
