@@ -5,6 +5,8 @@
 #include <fcntl.h>
 #include <fnmatch.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,13 +15,16 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -51,7 +56,9 @@ struct Case {
   std::string name, image, scene, out, log;
   std::string atlas;                        // with --atlas: the atlas folder (then `scene` is empty)
   std::string reference, referenceProblem;  // with --reference: the case's reference labels, or why there are none
-  std::string status = "pending";           // ok | failed | done (by an earlier run) | skipped (no image) | pending
+  // ok | failed | done (by an earlier run) | skipped (no image) | elsewhere (another batch runs it) | not-started (the
+  // batch was stopped first) | pending
+  std::string status = "pending";
   std::string message;
   int exitCode = -1;
   double seconds = 0, peakRssMiB = 0;
@@ -214,9 +221,12 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
   std::fflush(stderr);
   std::cout.flush();
   std::cerr.flush();
+  const pid_t parent = ::getpid();
   const pid_t pid = fork();
   if (pid < 0) throw Error("batch: cannot start a process for case " + c.name);
   if (pid == 0) {
+    // The case ends with the batch, however the batch ends (kill -9 included): no orphan keeps running.
+    if (::prctl(PR_SET_PDEATHSIG, SIGTERM) != 0 || ::getppid() != parent) _exit(125);
     const int fd = ::open(c.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fd < 0 || ::dup2(fd, 1) < 0 || ::dup2(fd, 2) < 0) _exit(126);
     ::close(fd);
@@ -227,8 +237,61 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
 }
 
 void say(const std::string& line) {
-  if (log::level() <= LogLevel::Info) std::cerr << "mskseg batch: " << line << std::endl;
+  if (log::level() <= LogLevel::Info) std::cerr << "mskseg batch: " << printableText(line) << std::endl;
 }
+
+/// The signal that asked the batch to stop (SIGTERM, SIGINT, SIGHUP), 0 while none has.
+volatile std::sig_atomic_t stopSignal = 0;
+
+extern "C" void onStopSignal(int sig) { stopSignal = sig; }
+
+/// Catches SIGTERM, SIGINT and SIGHUP for the batch's lifetime (restoring the previous handlers after), so that the
+/// batch stops its cases and writes its summary before it ends.
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction sa {};
+    sa.sa_handler = onStopSignal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;  // no SA_RESTART: a wait is interrupted
+    for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &sa, &old_[i]);
+  }
+  ~StopSignals() {
+    for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &old_[i], nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  static constexpr int kSignals[3] = {SIGTERM, SIGINT, SIGHUP};
+  struct sigaction old_[3];
+};
+
+/// A case claimed by this batch: an exclusive lock on OUT/logs/.<case>.claim, held while the case runs. Another batch
+/// on the same output folder (a rerun started meanwhile, another job of a cluster array) leaves the case alone; the
+/// kernel releases the lock however the batch ends, so no claim outlives its batch.
+class Claim {
+ public:
+  /// Tries to claim the case; held() says whether it did.
+  Claim(const fs::path& logs, const std::string& caseName) {
+    const std::string path = fileInFolder(logs.string(), "." + caseName + ".claim");
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw IoError(path, std::string("cannot open the claim file: ") + std::strerror(errno));
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      ::close(fd_);
+      fd_ = -1;
+    }
+  }
+  ~Claim() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Claim(const Claim&) = delete;
+  Claim& operator=(const Claim&) = delete;
+  bool held() const { return fd_ >= 0; }
+
+ private:
+  int fd_ = -1;
+};
 
 /// What a batch was asked to do.
 struct BatchSettings {
@@ -269,13 +332,18 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   app.add_flag("--redo", b.redo, "run the cases already done again");
   app.footer(
       "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs). "
-      "Writes OUT/summary.csv (one row per case: status, quality (ok, doubtful or failed: the segmentation's status "
+      "Writes OUT/summary.csv (one row per case: status (ok, failed, done by an earlier run, skipped: no image, "
+      "elsewhere: another batch on OUT is running it, not-started: the batch was stopped first), quality (ok, doubtful "
+      "or failed: the segmentation's status "
       "judged from the image alone, report.json's \"status\"), exit code, seconds, peak memory, the checks that need "
       "no "
       "reference: largest mean image residual and volume change of an object, voxels inside two objects; Dice; "
       "message), rewritten as each case ends; OUT/metrics.csv with --reference; OUT/batch.json (the command, "
       "version, counts, times). Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 "
-      "for a usage error.");
+      "for a usage error. SIGTERM, SIGINT or SIGHUP end the running cases and remove what they had half-written, write "
+      "the summary and exit 128 + the signal; the cases also end if the batch is killed outright (a rerun removes "
+      "what they left). Several batches may "
+      "share OUT (each case is claimed by one).");
   if (!parseArgs(app, argv)) return false;
   // `-- --atlas DIR` is the batch's --atlas given after the separator.
   if (auto it = std::find(b.forwarded.begin(), b.forwarded.end(), std::string("--atlas")); it != b.forwarded.end()) {
@@ -404,45 +472,93 @@ std::string caseEnded(Case& c, int status, const struct rusage& ru, const std::s
   return line;
 }
 
-/// Runs the cases `todo`, b.jobs at a time, rewriting the summary as each ends. A usage error in the forwarded
-/// options would fail every case alike: the batch stops starting cases at the first one and throws it.
-void runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector<size_t>& todo) {
+/// Runs the cases `todo`, b.jobs at a time, rewriting the summary as each ends. A case another batch has claimed is
+/// left to it; one that batch finished meanwhile counts as done. A usage error in the forwarded options would fail
+/// every case alike: the batch stops starting cases at the first one and throws it. SIGTERM, SIGINT or SIGHUP stop
+/// the batch: its running cases are ended (their outputs never appear half-written) and marked failed, the summary
+/// is written, and the signal's number is returned (0 when every case ran).
+int runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector<size_t>& todo, int& doneEarlier) {
   std::error_code ec;
   const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
   if (ec) throw Error("batch: cannot find the mskseg program itself (/proc/self/exe)");
   const bool scored = !b.referenceName.empty();
-  std::map<pid_t, std::pair<size_t, std::chrono::steady_clock::time_point>> running;
+  struct Running {
+    size_t index;
+    std::chrono::steady_clock::time_point start;
+    std::unique_ptr<Claim> claim;
+  };
+  std::map<pid_t, Running> running;
   size_t next = 0, finished = 0;
   std::string usageError;
+  const StopSignals signals;
+  stopSignal = 0;
+  bool stopping = false;
   while (next < todo.size() || !running.empty()) {
-    while (usageError.empty() && next < todo.size() && static_cast<int>(running.size()) < b.jobs) {
+    if (stopSignal != 0 && !stopping) {
+      stopping = true;
+      say("stopping (signal " + std::to_string(stopSignal) + "): ending " + std::to_string(running.size()) +
+          " running case(s)");
+      for (const auto& r : running) ::kill(r.first, SIGTERM);
+    }
+    while (!stopping && usageError.empty() && next < todo.size() && static_cast<int>(running.size()) < b.jobs) {
       const size_t i = todo[next++];
-      running[startCase(exe, cases[i], b.forwarded)] = {i, std::chrono::steady_clock::now()};
+      Case& c = cases[i];
+      auto claim = std::make_unique<Claim>(b.outAbs / "logs", c.name);
+      if (!claim->held()) {
+        c.status = "elsewhere";
+        c.message = "another batch on " + b.outAbs.string() + " is running it";
+        say(c.name + ": " + c.status + ": " + c.message);
+        continue;
+      }
+      if (!b.redo && fs::exists(c.out + "/report.json")) {  // finished by another batch since the cases were listed
+        c.status = "done";
+        ++doneEarlier;
+        readResults(c, scored);
+        continue;
+      }
+      running[startCase(exe, c, b.forwarded)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
     }
     if (running.empty()) break;
     int status = 0;
     struct rusage ru {};
-    const pid_t pid = ::wait4(-1, &status, 0, &ru);
-    if (pid < 0) {
-      if (errno == EINTR) continue;
-      throw Error("batch: lost track of the case processes");
+    const pid_t pid = ::wait4(-1, &status, WNOHANG, &ru);
+    if (pid == 0 || (pid < 0 && errno == EINTR)) {
+      ::usleep(100000);  // a signal cuts the sleep short
+      continue;
     }
+    if (pid < 0) throw Error("batch: lost track of the case processes");
     const auto it = running.find(pid);
     if (it == running.end()) continue;
-    Case& c = cases[it->second.first];
-    c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.second).count();
+    Case& c = cases[it->second.index];
+    c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.start).count();
     running.erase(it);
-    const std::string line = caseEnded(c, status, ru, exe, scored);
-    if (c.exitCode == 2 && usageError.empty()) usageError = c.name + ": " + c.message;
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)  // a case ended mid-write leaves its staging folder
+      fs::remove_all(b.outAbs / ("." + c.name + ".partial" + std::to_string(pid)), ec);
+    std::string line = caseEnded(c, status, ru, exe, scored);
+    if (stopping && c.status == "failed") {
+      c.message = "stopped: the batch was asked to stop (signal " + std::to_string(stopSignal) + ")";
+      line = c.name + " " + c.status + ": " + c.message;
+    }
+    if (c.exitCode == 2 && usageError.empty() && !stopping) usageError = c.name + ": " + c.message;
     say("[" + std::to_string(++finished) + "/" + std::to_string(todo.size()) + "] " + line);
     writeSummary(b.outAbs.string(), cases, scored);
   }
+  if (stopping) {
+    for (size_t k = next; k < todo.size(); ++k) {
+      Case& c = cases[todo[k]];
+      c.status = "not-started";
+      c.message = "the batch was stopped first";
+    }
+    writeSummary(b.outAbs.string(), cases, scored);
+    return stopSignal;
+  }
   if (!usageError.empty()) throw UsageError("case " + usageError);
+  return 0;
 }
 
 /// How the cases ended.
 struct CaseCounts {
-  long ok = 0, failed = 0, skipped = 0, doneEarlier = 0;
+  long ok = 0, failed = 0, skipped = 0, doneEarlier = 0, elsewhere = 0, notStarted = 0;
   long doubtful = 0, qualityFailed = 0;  ///< cases that ran (or were done earlier) with that quality status
 };
 
@@ -452,6 +568,8 @@ CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
     n.ok += c.status == "ok";
     n.failed += c.status == "failed";
     n.skipped += c.status == "skipped";
+    n.elsewhere += c.status == "elsewhere";
+    n.notStarted += c.status == "not-started";
     n.doubtful += c.quality == "doubtful";
     n.qualityFailed += c.quality == "failed";
   }
@@ -467,6 +585,8 @@ void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argv
   counts["failed"] = n.failed;
   counts["done_earlier"] = n.doneEarlier;
   counts["skipped_no_image"] = n.skipped;
+  counts["running_elsewhere"] = n.elsewhere;
+  counts["not_started"] = n.notStarted;
   counts["quality_doubtful"] = n.doubtful;
   counts["quality_failed"] = n.qualityFailed;
   Json j;
@@ -523,12 +643,19 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
 
   const std::time_t started = std::time(nullptr);
   const auto t0 = std::chrono::steady_clock::now();
-  runCases(b, cases, todo);
+  const int stoppedBy = runCases(b, cases, todo, doneEarlier);
   const CaseCounts n = countCases(cases, doneEarlier);
   writeBatchJson(b, argvIn, n, started, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  if (stoppedBy != 0) {
+    std::cerr << "mskseg batch: stopped by signal " << stoppedBy << "; " << n.ok << " case(s) ok; a rerun goes on "
+              << "from there -> " << b.outAbs.string() << "/summary.csv\n";
+    return 128 + stoppedBy;
+  }
   std::cout << "batch: " << n.ok << " ok, " << n.failed << " failed, " << n.doneEarlier << " done earlier, "
-            << n.skipped << " without " << b.imageName << "; segmentation doubtful in " << n.doubtful << ", failed in "
-            << n.qualityFailed << " -> " << b.outAbs.string() << "/summary.csv\n";
+            << n.skipped << " without " << b.imageName
+            << (n.elsewhere ? ", " + std::to_string(n.elsewhere) + " left to another batch running them" : "")
+            << "; segmentation doubtful in " << n.doubtful << ", failed in " << n.qualityFailed << " -> "
+            << b.outAbs.string() << "/summary.csv\n";
   return n.failed > 0 ? 1 : 0;
 }
 

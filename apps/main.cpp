@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/core/log.h"
 
@@ -66,7 +67,7 @@ int main(int argc, char** argv) {
   msk::log::setLevel(level);
   msk::log::setSink([](msk::LogLevel l, const std::string& m) {
     static const char* names[] = {"debug", "info", "warning", "error"};
-    std::cerr << "mskseg: " << names[static_cast<int>(l)] << ": " << m << std::endl;
+    std::cerr << "mskseg: " << names[static_cast<int>(l)] << ": " << msk::printableText(m) << std::endl;
   });
   if (rest.empty() || rest[0] == "--help" || rest[0] == "-h" || rest[0] == "help") {
     printHelp();
@@ -78,22 +79,23 @@ int main(int argc, char** argv) {
   }
   auto it = commands().find(rest[0]);
   if (it == commands().end()) {
-    std::cerr << "mskseg: error: unknown command '" << rest[0] << "' (see mskseg --help)\n";
+    std::cerr << "mskseg: error: unknown command '" << msk::printableText(rest[0]) << "' (see mskseg --help)\n";
     return 2;
   }
   try {
     return it->second.run(std::vector<std::string>(rest.begin() + 1, rest.end()));
   } catch (const msk::cli::UsageError& e) {
-    std::cerr << "mskseg " << rest[0] << ": usage error: " << e.what() << " (see mskseg " << rest[0] << " --help)\n";
+    std::cerr << "mskseg " << rest[0] << ": usage error: " << msk::printableText(e.what()) << " (see mskseg " << rest[0]
+              << " --help)\n";
     return 2;
   } catch (const msk::ParameterError& e) {
-    std::cerr << "mskseg " << rest[0] << ": usage error: " << e.what() << "\n";
+    std::cerr << "mskseg " << rest[0] << ": usage error: " << msk::printableText(e.what()) << "\n";
     return 2;
   } catch (const std::bad_alloc&) {
     std::cerr << "mskseg " << rest[0] << ": error: out of memory\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "mskseg " << rest[0] << ": error: " << e.what() << "\n";
+    std::cerr << "mskseg " << rest[0] << ": error: " << msk::printableText(e.what()) << "\n";
     return 1;
   }
 }

@@ -36,6 +36,10 @@ bool isSafeName(const std::string& name);
 /// `name` shown in a message: printable ASCII kept, every other byte as \xHH, cut to 80 characters.
 std::string printableName(const std::string& name);
 
+/// `text` safe to print on a terminal or into a log: control characters (other than tab), which could move the cursor
+/// or recolour the terminal, become \xHH; everything else (printable ASCII, UTF-8) is kept.
+std::string printableText(const std::string& text);
+
 /// The path of file `fileName` in `folder`. Throws IoError naming the folder if the file name is empty, ".", "..",
 /// contains '/', '\\' or a NUL byte, or is longer than 255 bytes: every output path is built here, so that none
 /// leaves its folder.
