@@ -8,6 +8,8 @@
 #include "mesh_io_detail.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
+#include "msk/core/log.h"
+#include "msk/imaging/mesh_repair.h"
 
 namespace msk {
 
@@ -101,7 +103,17 @@ TriangleMesh readMesh(const std::string& path, MeshSpace* fileSpace) {
   dropUnusedVertices(mesh);
   if (mesh.vertexCount() > 0 && !mesh.vertices.allFinite())
     throw IoError(path, "vertex coordinates are not finite (NaN or infinity)");
-  const std::string problem = closedMeshProblem(mesh);
+  std::string problem = closedMeshProblem(mesh);
+  if (!problem.empty()) {
+    // Exporters often write a vertex once per face or texture seam, or leave a small hole: mended where sound.
+    TriangleMesh mended = mesh;
+    const MeshMending done = mendSurface(mended);
+    if (!done.summary().empty() && closedMeshProblem(mended).empty()) {
+      log::warn(path + ": not a closed surface as written (" + problem + "); " + done.summary() + ", which closes it");
+      mesh = std::move(mended);
+      problem.clear();
+    }
+  }
   if (!problem.empty()) throw IoError(path, "not a closed triangle surface: " + problem);
   if (space == MeshSpace::LPS) transformMesh(mesh, rasLpsFlip());
   if (fileSpace) *fileSpace = space;

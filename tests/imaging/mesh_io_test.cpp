@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "msk/core/error.h"
+#include "msk/core/log.h"
 #include "msk/test/files.h"
 
 namespace {
@@ -345,10 +346,24 @@ TEST(MeshIo, TruncatedEmptyAndNonFiniteFilesAreIoErrors) {
   expectIoError([&] { msk::readMesh(nan); }, nan);
 }
 
+/// An icosphere of radius 10 mm without the faces above z = 5 mm: open by a hole far too large to fill.
+TriangleMesh cutSphere() {
+  const TriangleMesh sphere = msk::makeIcosphere(10.0, 2);
+  std::vector<int> kept;
+  for (int f = 0; f < sphere.faceCount(); ++f) {
+    double z = 0;
+    for (int k = 0; k < 3; ++k) z += sphere.vertices(sphere.faces(f, k), 2) / 3;
+    if (z <= 5) kept.push_back(f);
+  }
+  TriangleMesh open = sphere;
+  open.faces.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (size_t i = 0; i < kept.size(); ++i) open.faces.row(static_cast<Eigen::Index>(i)) = sphere.faces.row(kept[i]);
+  return open;
+}
+
 TEST(MeshIo, OpenMeshIsRefusedOnReadAndWrite) {
   msk::test::ScratchDir dir;
-  TriangleMesh open = msk::makeIcosphere(10.0, 2);
-  open.faces.conservativeResize(open.faceCount() - 1, 3);
+  const TriangleMesh open = cutSphere();
   const std::string path = dir.file("open.vtk");
   msk::test::writeBytes(path, legacyText(open, "open SPACE=RAS"));
   expectIoError([&] { msk::readMesh(path); }, path, "not closed");
@@ -363,6 +378,57 @@ TEST(MeshIo, OpenMeshIsRefusedOnReadAndWrite) {
   const std::string nowhere = dir.file("no/such/folder/m.vtk");
   expectIoError([&] { msk::writeMesh(nowhere, sampleMesh()); }, nowhere, "folder");
   EXPECT_EQ(dir.list(), std::vector<std::string>{"open.vtk"});
+}
+
+// What exporters commonly leave in a sound surface is mended on reading, with a warning naming the file and what was
+// done: a vertex written once per face (an OBJ or a soup of triangles), a missing face or two (small holes).
+TEST(MeshIo, DuplicateVerticesAndSmallHolesAreMendedWithAWarning) {
+  msk::test::ScratchDir dir;
+  std::vector<std::string> warnings;
+  const auto old = msk::log::setSink([&](msk::LogLevel l, const std::string& m) {
+    if (l == msk::LogLevel::Warn) warnings.push_back(m);
+  });
+  const TriangleMesh sphere = msk::makeIcosphere(10.0, 2);
+
+  // Every face with vertices of its own (a triangle soup), as OBJ.
+  std::ostringstream soup;
+  for (int f = 0; f < sphere.faceCount(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const auto v = sphere.vertices.row(sphere.faces(f, k));
+      soup << "v " << v(0) << " " << v(1) << " " << v(2) << "\n";
+    }
+  for (int f = 0; f < sphere.faceCount(); ++f)
+    soup << "f " << 3 * f + 1 << " " << 3 * f + 2 << " " << 3 * f + 3 << "\n";
+  const std::string soupPath = dir.file("soup.obj");
+  msk::test::writeBytes(soupPath, soup.str());
+  const TriangleMesh merged = msk::readMesh(soupPath);
+  EXPECT_EQ(merged.vertexCount(), sphere.vertexCount());
+  EXPECT_EQ(merged.faceCount(), sphere.faceCount());
+  EXPECT_NEAR(msk::enclosedVolume(merged), msk::enclosedVolume(sphere), 1e-6 * msk::enclosedVolume(sphere));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("soup.obj"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("merged " + std::to_string(3 * sphere.faceCount() - sphere.vertexCount()) +
+                             " duplicate vertices"),
+            std::string::npos)
+      << warnings[0];
+
+  // Two faces missing far apart: two holes of three edges, closed again without a new vertex.
+  TriangleMesh holed = sampleMesh();
+  const int faces = holed.faceCount();
+  holed.faces.row(3) = holed.faces.row(faces - 1);
+  holed.faces.row(faces / 2) = holed.faces.row(faces - 2);
+  holed.faces.conservativeResize(faces - 2, 3);
+  const std::string holedPath = dir.file("holed.vtk");
+  msk::test::writeBytes(holedPath, legacyText(holed, "holed SPACE=RAS"));
+  warnings.clear();
+  const TriangleMesh filled = msk::readMesh(holedPath);
+  EXPECT_EQ(filled.vertexCount(), holed.vertexCount());
+  EXPECT_EQ(filled.faceCount(), faces);
+  EXPECT_EQ(msk::closedMeshProblem(filled), "");
+  EXPECT_GT(msk::enclosedVolume(filled), 0.0);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("filled 2 hole(s) of up to 3 edges"), std::string::npos) << warnings[0];
+  msk::log::setSink(old);
 }
 
 TEST(MeshIo, FailedOverwriteKeepsTheOldFile) {
