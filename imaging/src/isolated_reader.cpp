@@ -5,15 +5,27 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdint>
 #include <cstring>
 #include <exception>
+#include <fstream>
 #include <new>
 
 #include "msk/core/error.h"
+
+// AddressSanitizer reserves terabytes of address space for its shadow memory, so under it the child's memory is bounded
+// by watching its resident size (residentBytes) instead of RLIMIT_AS.
+#if defined(__SANITIZE_ADDRESS__)
+#define MSK_ISOLATED_READER_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define MSK_ISOLATED_READER_ASAN 1
+#endif
+#endif
 
 namespace msk::detail {
 
@@ -77,7 +89,8 @@ TriangleMesh decode(const std::string& bytes, const std::string& path, MeshSpace
   Decoder d(bytes, path);
   const int64_t nv = d.value<int64_t>(), nf = d.value<int64_t>(), na = d.value<int64_t>();
   const int32_t s = d.value<int32_t>();
-  if (nv < 0 || nf < 0 || na < 0 || static_cast<uint64_t>(nv) * 24 + static_cast<uint64_t>(nf) * 12 > bytes.size())
+  if (nv < 0 || nf < 0 || na < 0 || static_cast<uint64_t>(nv) > bytes.size() / 24 ||
+      static_cast<uint64_t>(nf) > bytes.size() / 12 || nv > INT32_MAX || nf > INT32_MAX)
     throw IoError(path, "the reader's answer is malformed");
   TriangleMesh m;
   m.vertices.resize(nv, 3);
@@ -111,10 +124,15 @@ void writeAll(int fd, const std::string& bytes) {
 
 [[noreturn]] void runChild(int fd, const std::string& path, MeshSpace space,
                            const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
-  const rlimit memory{static_cast<rlim_t>(kIsolatedReaderBytes), static_cast<rlim_t>(kIsolatedReaderBytes)};
+  // A crash ends the child by its signal, whatever handlers the parent installed (a sanitizer's or a fuzzer's would
+  // report the reader's crash as the parent's own).
+  for (const int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP}) std::signal(sig, SIG_DFL);
   const rlimit cpu{static_cast<rlim_t>(kIsolatedReaderSeconds), static_cast<rlim_t>(kIsolatedReaderSeconds)};
-  setrlimit(RLIMIT_AS, &memory);
   setrlimit(RLIMIT_CPU, &cpu);
+#ifndef MSK_ISOLATED_READER_ASAN
+  const rlimit memory{static_cast<rlim_t>(kIsolatedReaderBytes), static_cast<rlim_t>(kIsolatedReaderBytes)};
+  setrlimit(RLIMIT_AS, &memory);
+#endif
   std::string answer;
   try {
     const TriangleMesh m = read(path, space);
@@ -129,6 +147,14 @@ void writeAll(int fd, const std::string& bytes) {
   writeAll(fd, answer);
   ::close(fd);
   _exit(0);
+}
+
+/// Resident memory of process `pid`, bytes (0 if unknown).
+long long residentBytes(pid_t pid) {
+  std::ifstream statm("/proc/" + std::to_string(pid) + "/statm");
+  long long size = 0, resident = 0;
+  if (!(statm >> size >> resident)) return 0;
+  return resident * ::sysconf(_SC_PAGESIZE);
 }
 
 }  // namespace
@@ -150,17 +176,23 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
   }
   ::close(fds[1]);
   // Waits for the answer at most twice the CPU limit in wall time (a child blocked, not computing, is not stopped by
-  // that limit), then ends the child.
+  // that limit), then ends the child; ends it too if its resident memory passes kIsolatedReaderBytes.
   std::string bytes;
   char buffer[1 << 16];
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2 * kIsolatedReaderSeconds);
-  bool late = false;
+  bool late = false, tooBig = false;
   for (;;) {
     const auto left =
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     pollfd p{fds[0], POLLIN, 0};
-    const int ready = left.count() > 0 ? ::poll(&p, 1, static_cast<int>(left.count())) : 0;
+    const int ready = left.count() > 0 ? ::poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 100))) : 0;
     if (ready < 0 && errno == EINTR) continue;
+    if (ready == 0 && left.count() > 0) {
+      if (residentBytes(pid) <= kIsolatedReaderBytes) continue;
+      tooBig = true;
+      ::kill(pid, SIGKILL);
+      break;
+    }
     if (ready <= 0) {
       late = true;
       ::kill(pid, SIGKILL);
@@ -176,6 +208,9 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   const std::string reader = std::string("the ") + what + " reader";
+  if (tooBig)
+    throw IoError(path, reader + " needed more than " + std::to_string(kIsolatedReaderBytes >> 30) +
+                            " GB for the file (malformed?)");
   if (late)
     throw IoError(
         path, reader + " gave no answer within " + std::to_string(2 * kIsolatedReaderSeconds) + " s (malformed file?)");
