@@ -23,23 +23,27 @@ bool isSafeName(const std::string& name) {
   return true;
 }
 
-std::string printableText(const std::string& text) {
+namespace {
+/// Appends byte `c` as \xHH.
+void appendEscaped(std::string& out, unsigned char c) {
   static const char* hex = "0123456789abcdef";
+  out += "\\x";
+  out += hex[c >> 4];
+  out += hex[c & 15];
+}
+}  // namespace
+
+std::string printableText(const std::string& text) {
   std::string out;
   out.reserve(text.size());
-  auto escape = [&](unsigned char c) {
-    out += "\\x";
-    out += hex[c >> 4];
-    out += hex[c & 15];
-  };
   for (size_t i = 0; i < text.size(); ++i) {
     const unsigned char c = static_cast<unsigned char>(text[i]);
     const unsigned char next = i + 1 < text.size() ? static_cast<unsigned char>(text[i + 1]) : 0;
     if ((c < 32 && c != '\t') || c == 127) {
-      escape(c);
+      appendEscaped(out, c);
     } else if (c == 0xc2 && next >= 0x80 && next <= 0x9f) {  // U+0080..U+009F, the C1 controls, in UTF-8
-      escape(c);
-      escape(next);
+      appendEscaped(out, c);
+      appendEscaped(out, next);
       ++i;
     } else {
       out += static_cast<char>(c);
@@ -49,17 +53,13 @@ std::string printableText(const std::string& text) {
 }
 
 std::string printableName(const std::string& name) {
-  static const char* hex = "0123456789abcdef";
   std::string out;
   for (char ch : name) {
     const unsigned char c = static_cast<unsigned char>(ch);
-    if (c >= 32 && c < 127) {
+    if (c >= 32 && c < 127)
       out += ch;
-    } else {
-      out += "\\x";
-      out += hex[c >> 4];
-      out += hex[c & 15];
-    }
+    else
+      appendEscaped(out, c);
     if (out.size() >= 80) return out + "...";
   }
   return out;

@@ -208,9 +208,9 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   const std::string reader = std::string("the ") + what + " reader";
-  if (tooBig)
-    throw IoError(path, reader + " needed more than " + std::to_string(kIsolatedReaderBytes >> 30) +
-                            " GB for the file (malformed?)");
+  const IoError outOfMemory(path, reader + " needed more than " + std::to_string(kIsolatedReaderBytes >> 30) +
+                                      " GB for the file (malformed?)");
+  if (tooBig) throw outOfMemory;
   if (late)
     throw IoError(
         path, reader + " gave no answer within " + std::to_string(2 * kIsolatedReaderSeconds) + " s (malformed file?)");
@@ -228,8 +228,7 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
     case Answer::IoProblem:
       throw IoError(path, bytes.substr(1));
     case Answer::OutOfMemory:
-      throw IoError(path, reader + " needed more than " + std::to_string(kIsolatedReaderBytes >> 30) +
-                              " GB for the file (malformed?)");
+      throw outOfMemory;
     case Answer::Other:
       throw IoError(path, "cannot read the file: " + bytes.substr(1));
   }
