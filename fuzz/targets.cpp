@@ -90,8 +90,8 @@ void mesh(const uint8_t* data, size_t size) {
 constexpr char kVtk[] = ".vtk", kVtp[] = ".vtp", kStl[] = ".stl", kObj[] = ".obj", kPly[] = ".ply";
 
 void tetMesh(const uint8_t* data, size_t size) {
-  const std::string path = put("input_tets.vtk", data, size);
-  expectOnlyMskErrors("tet_vtk", [&] { (void)readTetMesh(path); });
+  const std::string path = put("input_tets.vtu", data, size);
+  expectOnlyMskErrors("tet_vtu", [&] { (void)readTetMesh(path); });
 }
 
 /// scene.json beside the fixture template.vtk, which a scene may name.
@@ -118,7 +118,7 @@ void transform(const uint8_t* data, size_t size) {
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"nifti", nifti},         {"mesh_vtk", mesh<kVtk>}, {"mesh_vtp", mesh<kVtp>},
                                           {"mesh_stl", mesh<kStl>}, {"mesh_obj", mesh<kObj>}, {"mesh_ply", mesh<kPly>},
-                                          {"tet_vtk", tetMesh},     {"scene", scene},         {"atlas", atlas},
+                                          {"tet_vtu", tetMesh},     {"scene", scene},         {"atlas", atlas},
                                           {"transform", transform}};
   return all;
 }

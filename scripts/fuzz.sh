@@ -13,7 +13,7 @@ seconds="${1:-30}"
 shift || true
 build="${MSK_SANITIZE_BUILD_DIR:-$here/build-sanitize}"
 jobs="${MSK_JOBS:-$(nproc)}"
-all=(nifti mesh_vtk mesh_vtp mesh_stl mesh_obj mesh_ply tet_vtk scene atlas transform)
+all=(nifti mesh_vtk mesh_vtp mesh_stl mesh_obj mesh_ply tet_vtu scene atlas transform)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all[@]}")
 

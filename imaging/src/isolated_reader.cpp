@@ -31,67 +31,34 @@ namespace msk::detail {
 
 namespace {
 
-// The child's answer: one status byte, then the mesh (counts, vertices, faces, point data, space) or the message.
-enum class Answer : char { Mesh = 'M', IoProblem = 'I', OutOfMemory = 'O', Other = 'E' };
-
-void put(std::string& out, const void* p, size_t n) { out.append(static_cast<const char*>(p), n); }
-template <typename T>
-void putValue(std::string& out, T v) {
-  put(out, &v, sizeof v);
-}
+// The child's answer: one status byte, then what the reader returned or the message.
+enum class Answer : char { Result = 'M', IoProblem = 'I', OutOfMemory = 'O', Other = 'E' };
 
 std::string encode(const TriangleMesh& m, MeshSpace space) {
-  std::string out(1, static_cast<char>(Answer::Mesh));
-  putValue<int64_t>(out, m.vertexCount());
-  putValue<int64_t>(out, m.faceCount());
-  putValue<int64_t>(out, static_cast<int64_t>(m.pointData.size()));
-  putValue<int32_t>(out, space == MeshSpace::LPS ? 0 : 1);
+  ByteWriter out;
+  out.value<int64_t>(m.vertexCount());
+  out.value<int64_t>(m.faceCount());
+  out.value<int64_t>(static_cast<int64_t>(m.pointData.size()));
+  out.value<int32_t>(space == MeshSpace::LPS ? 0 : 1);
   for (int v = 0; v < m.vertexCount(); ++v)
-    for (int c = 0; c < 3; ++c) putValue<double>(out, m.vertices(v, c));
+    for (int c = 0; c < 3; ++c) out.value<double>(m.vertices(v, c));
   for (int f = 0; f < m.faceCount(); ++f)
-    for (int c = 0; c < 3; ++c) putValue<int32_t>(out, m.faces(f, c));
+    for (int c = 0; c < 3; ++c) out.value<int32_t>(m.faces(f, c));
   for (const auto& [name, values] : m.pointData) {
-    putValue<int64_t>(out, static_cast<int64_t>(name.size()));
-    out += name;
-    for (Eigen::Index i = 0; i < values.size(); ++i) putValue<double>(out, values[i]);
+    out.value<int64_t>(static_cast<int64_t>(name.size()));
+    out.text(name);
+    for (Eigen::Index i = 0; i < values.size(); ++i) out.value<double>(values[i]);
   }
-  return out;
+  return std::move(out.bytes());
 }
 
-/// Reads the child's answer; throws IoError(path, ...) if it is cut short.
-class Decoder {
- public:
-  Decoder(const std::string& bytes, const std::string& path) : b_(bytes), path_(path) {}
-  template <typename T>
-  T value() {
-    T v;
-    take(&v, sizeof v);
-    return v;
-  }
-  std::string text(size_t n) {
-    std::string s(n, '\0');
-    take(s.data(), n);
-    return s;
-  }
-
- private:
-  void take(void* p, size_t n) {
-    if (at_ + n > b_.size()) throw IoError(path_, "the reader's answer was cut short");
-    std::memcpy(p, b_.data() + at_, n);
-    at_ += n;
-  }
-  const std::string& b_;
-  const std::string& path_;
-  size_t at_ = 1;
-};
-
 TriangleMesh decode(const std::string& bytes, const std::string& path, MeshSpace& space) {
-  Decoder d(bytes, path);
+  ByteReader d(bytes, path);
   const int64_t nv = d.value<int64_t>(), nf = d.value<int64_t>(), na = d.value<int64_t>();
   const int32_t s = d.value<int32_t>();
   if (nv < 0 || nf < 0 || na < 0 || static_cast<uint64_t>(nv) > bytes.size() / 24 ||
       static_cast<uint64_t>(nf) > bytes.size() / 12 || nv > INT32_MAX || nf > INT32_MAX)
-    throw IoError(path, "the reader's answer is malformed");
+    d.malformed();
   TriangleMesh m;
   m.vertices.resize(nv, 3);
   m.faces.resize(nf, 3);
@@ -101,7 +68,7 @@ TriangleMesh decode(const std::string& bytes, const std::string& path, MeshSpace
     for (int c = 0; c < 3; ++c) m.faces(f, c) = d.value<int32_t>();
   for (int64_t a = 0; a < na; ++a) {
     const int64_t len = d.value<int64_t>();
-    if (len < 0 || static_cast<uint64_t>(len) > bytes.size()) throw IoError(path, "the reader's answer is malformed");
+    if (len < 0 || static_cast<uint64_t>(len) > bytes.size()) d.malformed();
     const std::string name = d.text(static_cast<size_t>(len));
     Eigen::VectorXd values(nv);
     for (int64_t i = 0; i < nv; ++i) values[i] = d.value<double>();
@@ -122,8 +89,7 @@ void writeAll(int fd, const std::string& bytes) {
   }
 }
 
-[[noreturn]] void runChild(int fd, const std::string& path, MeshSpace space,
-                           const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
+[[noreturn]] void runChild(int fd, const std::function<std::string()>& read) {
   // A crash ends the child by its signal, whatever handlers the parent installed (a sanitizer's or a fuzzer's would
   // report the reader's crash as the parent's own).
   for (const int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP}) std::signal(sig, SIG_DFL);
@@ -135,8 +101,7 @@ void writeAll(int fd, const std::string& bytes) {
 #endif
   std::string answer;
   try {
-    const TriangleMesh m = read(path, space);
-    answer = encode(m, space);
+    answer = std::string(1, static_cast<char>(Answer::Result)) + read();
   } catch (const IoError& e) {
     answer = std::string(1, static_cast<char>(Answer::IoProblem)) + e.problem();
   } catch (const std::bad_alloc&) {
@@ -159,8 +124,22 @@ long long residentBytes(pid_t pid) {
 
 }  // namespace
 
-TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const char* what,
-                                const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
+std::string ByteReader::text(size_t n) {
+  if (n > left()) malformed();
+  std::string s(n, '\0');
+  take(s.data(), n);
+  return s;
+}
+
+void ByteReader::take(void* p, size_t n) {
+  if (n > left()) throw IoError(path_, "the reader's answer was cut short");
+  std::memcpy(p, b_.data() + at_, n);
+  at_ += n;
+}
+
+void ByteReader::malformed() const { throw IoError(path_, "the reader's answer is malformed"); }
+
+std::string runInChildProcess(const std::string& path, const char* what, const std::function<std::string()>& read) {
   int fds[2];
   if (::pipe(fds) != 0)
     throw IoError(path, std::string("cannot start the ") + what + " reader: " + std::strerror(errno));
@@ -172,7 +151,7 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
   }
   if (pid == 0) {
     ::close(fds[0]);
-    runChild(fds[1], path, space, read);
+    runChild(fds[1], read);
   }
   ::close(fds[1]);
   // Waits for the answer at most twice the CPU limit in wall time (a child blocked, not computing, is not stopped by
@@ -223,8 +202,8 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
   }
   if (bytes.empty()) throw IoError(path, reader + " ended without an answer (the file is malformed)");
   switch (static_cast<Answer>(bytes[0])) {
-    case Answer::Mesh:
-      return decode(bytes, path, space);
+    case Answer::Result:
+      return bytes.substr(1);
     case Answer::IoProblem:
       throw IoError(path, bytes.substr(1));
     case Answer::OutOfMemory:
@@ -233,6 +212,16 @@ TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const
       throw IoError(path, "cannot read the file: " + bytes.substr(1));
   }
   throw IoError(path, reader + " gave an unknown answer");
+}
+
+TriangleMesh readInChildProcess(const std::string& path, MeshSpace& space, const char* what,
+                                const std::function<TriangleMesh(const std::string&, MeshSpace&)>& read) {
+  const std::string bytes = runInChildProcess(path, what, [&] {
+    MeshSpace found = space;
+    const TriangleMesh m = read(path, found);
+    return encode(m, found);
+  });
+  return decode(bytes, path, space);
 }
 
 }  // namespace msk::detail

@@ -52,6 +52,12 @@ Json parseJson(const std::string& text) {
     out = Json::parse(text, watch);
   } catch (const Json::parse_error& e) {
     throw Error(parseProblem(e));
+  } catch (const Json::exception& e) {
+    // A number too large for a double ("number overflow parsing '1e999'") and the like: nlohmann's text
+    // without its "[json.exception.<kind>.<id>] " prefix.
+    std::string what = e.what();
+    const size_t end = what.find("] ");
+    throw Error(end == std::string::npos ? what : what.substr(end + 2));
   }
   if (!duplicate.empty()) throw Error("key \"" + duplicate + "\" given twice in one object");
   return out;

@@ -12,8 +12,10 @@
 #include <vtkXMLUnstructuredGridReader.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
+#include <cstdint>
 #include <string>
 
+#include "isolated_reader.h"
 #include "mesh_io_detail.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -107,46 +109,91 @@ void writeTetMesh(const std::string& path, const TetMesh& rasMesh, MeshSpace spa
   });
 }
 
+namespace {
+
+/// VTK's XML unstructured-grid reader in this process: nodes as stored in the file (not yet in RAS) and tets.
+TetMesh readVtuHere(const std::string& path, MeshSpace& space) {
+  TetMesh mesh;
+  vtkNew<vtkXMLUnstructuredGridReader> r;
+  VtkErrorTrap trap(r);
+  r->SetFileName(path.c_str());
+  r->Update();
+  vtkUnstructuredGrid* grid = r->GetOutput();
+  if (trap.failed() || r->GetErrorCode() != 0 || !grid || grid->GetNumberOfPoints() == 0 ||
+      grid->GetNumberOfCells() == 0)
+    throw IoError(path, "cannot read the file as a VTK XML unstructured grid (unreadable, corrupt or empty)" +
+                            (trap.message().empty() ? "" : std::string(": ") + trap.message()));
+
+  detail::fieldDataSpace(grid->GetFieldData(), path, space);
+
+  const vtkIdType n = grid->GetNumberOfPoints(), cellCount = grid->GetNumberOfCells();
+  if (n > INT32_MAX || cellCount > INT32_MAX) throw IoError(path, "more nodes or cells than this program handles");
+  mesh.nodes.resize(n, 3);
+  for (vtkIdType i = 0; i < n; ++i) {
+    double p[3];
+    grid->GetPoint(i, p);
+    mesh.nodes.row(i) << p[0], p[1], p[2];
+  }
+  mesh.tets.resize(cellCount, 4);
+  vtkNew<vtkIdList> ids;
+  for (vtkIdType c = 0; c < cellCount; ++c) {
+    if (grid->GetCellType(c) != VTK_TETRA)
+      throw IoError(path, "cell " + std::to_string(c) + " is not a tetrahedron (VTK cell type " +
+                              std::to_string(grid->GetCellType(c)) + ")");
+    grid->GetCellPoints(c, ids);
+    if (ids->GetNumberOfIds() != 4) throw IoError(path, "cell " + std::to_string(c) + " has no 4 points");
+    for (int k = 0; k < 4; ++k) {
+      const vtkIdType id = ids->GetId(k);
+      if (id < 0 || id >= n) throw IoError(path, "cell " + std::to_string(c) + " names a point that does not exist");
+      mesh.tets(c, k) = static_cast<int>(id);
+    }
+  }
+  return mesh;
+}
+
+std::string encode(const TetMesh& m, MeshSpace space) {
+  detail::ByteWriter out;
+  out.value<int32_t>(space == MeshSpace::LPS ? 0 : 1);
+  out.value<int64_t>(m.nodeCount());
+  out.value<int64_t>(m.tetCount());
+  for (int i = 0; i < m.nodeCount(); ++i)
+    for (int c = 0; c < 3; ++c) out.value<double>(m.nodes(i, c));
+  for (int t = 0; t < m.tetCount(); ++t)
+    for (int k = 0; k < 4; ++k) out.value<int32_t>(m.tets(t, k));
+  return std::move(out.bytes());
+}
+
+TetMesh decode(const std::string& bytes, const std::string& path, MeshSpace& space) {
+  detail::ByteReader in(bytes, path);
+  space = in.value<int32_t>() == 0 ? MeshSpace::LPS : MeshSpace::RAS;
+  const int64_t n = in.value<int64_t>(), t = in.value<int64_t>();
+  if (n < 0 || t < 0 || static_cast<uint64_t>(n) > in.left() / 24 || static_cast<uint64_t>(t) > in.left() / 16)
+    in.malformed();
+  TetMesh m;
+  m.nodes.resize(n, 3);
+  m.tets.resize(t, 4);
+  for (int64_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) m.nodes(i, c) = in.value<double>();
+  for (int64_t j = 0; j < t; ++j)
+    for (int k = 0; k < 4; ++k) m.tets(j, k) = in.value<int32_t>();
+  return m;
+}
+
+}  // namespace
+
+// VTK's XML reader crashes and exhausts memory or time on malformed files (see mesh_io_vtp.cpp): it runs in a child
+// process, where a crash is one error naming the file.
 TetMesh readTetMesh(const std::string& path, MeshSpace* fileSpace) {
   checkExtension(path);
   detail::requireRegularFile(path);
 
-  TetMesh mesh;
   MeshSpace space = MeshSpace::LPS;  // untagged files are LPS
-  try {
-    vtkNew<vtkXMLUnstructuredGridReader> r;
-    VtkErrorTrap trap(r);
-    r->SetFileName(path.c_str());
-    r->Update();
-    vtkUnstructuredGrid* grid = r->GetOutput();
-    if (trap.failed() || r->GetErrorCode() != 0 || !grid || grid->GetNumberOfPoints() == 0 ||
-        grid->GetNumberOfCells() == 0)
-      throw IoError(path, "cannot read the file as a VTK XML unstructured grid (unreadable, corrupt or empty)" +
-                              (trap.message().empty() ? "" : std::string(": ") + trap.message()));
-
-    detail::fieldDataSpace(grid->GetFieldData(), path, space);
-
-    const vtkIdType n = grid->GetNumberOfPoints(), cellCount = grid->GetNumberOfCells();
-    mesh.nodes.resize(n, 3);
-    for (vtkIdType i = 0; i < n; ++i) {
-      double p[3];
-      grid->GetPoint(i, p);
-      mesh.nodes.row(i) << p[0], p[1], p[2];
-    }
-    mesh.tets.resize(cellCount, 4);
-    vtkNew<vtkIdList> ids;
-    for (vtkIdType c = 0; c < cellCount; ++c) {
-      if (grid->GetCellType(c) != VTK_TETRA)
-        throw IoError(path, "cell " + std::to_string(c) + " is not a tetrahedron (VTK cell type " +
-                                std::to_string(grid->GetCellType(c)) + ")");
-      grid->GetCellPoints(c, ids);
-      for (int k = 0; k < 4; ++k) mesh.tets(c, k) = static_cast<int>(ids->GetId(k));
-    }
-  } catch (const Error&) {
-    throw;
-  } catch (const std::exception& e) {  // e.g. std::bad_alloc from a garbage count inside VTK
-    throw IoError(path, std::string("cannot read the file: ") + e.what());
-  }
+  const std::string bytes = detail::runInChildProcess(path, "VTK XML", [&] {
+    MeshSpace found = MeshSpace::LPS;
+    const TetMesh m = readVtuHere(path, found);
+    return encode(m, found);
+  });
+  TetMesh mesh = decode(bytes, path, space);
 
   if (!mesh.nodes.allFinite()) throw IoError(path, "node coordinates are not finite (NaN or infinity)");
   if (space == MeshSpace::LPS) mesh.nodes = flipped(mesh.nodes);

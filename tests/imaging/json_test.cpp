@@ -44,6 +44,12 @@ TEST(Json, ErrorsGiveLineAndColumn) {
   EXPECT_THROW(msk::parseJson("{\"o\": {\"a\":1, \"b\": {}, \"a\":2}}"), msk::Error);
   EXPECT_NO_THROW(msk::parseJson("[{\"a\":1}, {\"a\":2}]"));  // the same key in two objects is fine
   EXPECT_THROW(msk::parseJson("[1,]"), msk::Error);
+  try {  // a number beyond a double is an msk::Error too, not nlohmann's own exception
+    msk::parseJson("{\"a\": 1e99999}");
+    ADD_FAILURE() << "a number beyond a double was accepted";
+  } catch (const msk::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("number overflow parsing '1e99999'"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(msk::parseJson("1 2"), msk::Error);
   EXPECT_THROW(msk::parseJson("\"unterminated"), msk::Error);
   EXPECT_THROW(msk::jsonInt(msk::parseJson("1.5")), msk::Error);
