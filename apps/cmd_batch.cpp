@@ -29,15 +29,18 @@
 #include <string>
 #include <vector>
 
+#include "batch_bids.h"
 #include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/core/log.h"
+#include "msk/imaging/checksum.h"
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/atlas.h"
 #include "msk/segmentation/metrics.h"
+#include "msk/segmentation/scene.h"
 
 namespace fs = std::filesystem;
 
@@ -56,8 +59,13 @@ struct Case {
   std::string name, image, scene, out, log;
   std::string atlas;                        // with --atlas: the atlas folder (then `scene` is empty)
   std::string reference, referenceProblem;  // with --reference: the case's reference labels, or why there are none
-  // ok | failed | done (by an earlier run) | skipped (no image) | elsewhere (another batch runs it) | not-started (the
-  // batch was stopped first) | pending
+  std::string reportPath, labelsPath;       // where the finished case's report and label map are
+  bool bids = false;                        // with --bids: `out` is a work folder published into the BIDS layout
+  BidsCase bidsCase;
+  std::string fingerprint;  // of what produces the case: version, scene or atlas, options, image
+  // ok | failed | done (by an earlier run) | stale (done by an earlier run with other inputs, kept by --keep-stale) |
+  // skipped (no image) | elsewhere (another batch runs it) | interrupted (the batch was stopped while it ran) |
+  // not-started (the batch was stopped first) | pending
   std::string status = "pending";
   std::string message;
   int exitCode = -1;
@@ -99,26 +107,52 @@ std::string errorLine(const std::string& logPath) {
   return lastError.empty() ? last : lastError;
 }
 
-/// The file of case folder `dir` named `pattern` (a name, or a shell pattern such as "*_T1w.nii.gz" that must match
-/// exactly one file there). Empty with `problem` set if there is none or more than one.
+/// The file of case folder `dir` named `pattern`: a path inside the folder whose parts may be shell patterns, such as
+/// "*_T1w.nii.gz" or "anat/*_T1w.nii.gz", matching exactly one file. Empty with `problem` set if there is none or more
+/// than one.
 std::string caseFile(const fs::path& dir, const std::string& pattern, std::string& problem) {
   problem.clear();
-  if (pattern.find_first_of("*?[") == std::string::npos) {
-    if (fs::exists(dir / pattern)) return fs::absolute(dir / pattern).string();
-    problem = "no " + pattern;
-    return "";
-  }
-  std::vector<std::string> hits;
+  std::vector<std::string> parts;
+  for (const fs::path& part : fs::path(pattern))
+    if (!part.empty() && part != ".") parts.push_back(part.string());
+  std::vector<fs::path> at = {fs::path()};  // matches so far, relative to dir
   std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir, ec))
-    if (!e.is_directory() && ::fnmatch(pattern.c_str(), e.path().filename().c_str(), 0) == 0)
-      hits.push_back(e.path().filename().string());
-  std::sort(hits.begin(), hits.end());
-  if (hits.size() == 1) return fs::absolute(dir / hits[0]).string();
-  problem = hits.empty() ? "no file matches " + pattern
-                         : std::to_string(hits.size()) + " files match " + pattern + " (" + hits[0] + ", " + hits[1] +
-                               (hits.size() > 2 ? ", ..." : "") + ")";
+  for (size_t k = 0; k < parts.size(); ++k) {
+    const bool last = k + 1 == parts.size();
+    std::vector<fs::path> next;
+    for (const fs::path& base : at) {
+      if (parts[k].find_first_of("*?[") == std::string::npos) {
+        const fs::path candidate = base / parts[k];
+        if (last ? fs::is_regular_file(dir / candidate, ec) : fs::is_directory(dir / candidate, ec))
+          next.push_back(candidate);
+        continue;
+      }
+      std::vector<fs::path> hits;
+      for (const auto& e : fs::directory_iterator(dir / base, ec))
+        if ((last ? e.is_regular_file() : e.is_directory()) &&
+            ::fnmatch(parts[k].c_str(), e.path().filename().c_str(), FNM_PERIOD) == 0)
+          hits.push_back(base / e.path().filename());
+      std::sort(hits.begin(), hits.end());
+      next.insert(next.end(), hits.begin(), hits.end());
+    }
+    at = next;
+  }
+  if (at.size() == 1 && !parts.empty()) return fs::absolute(dir / at[0]).lexically_normal().string();
+  if (at.empty() || parts.empty())
+    problem = pattern.find_first_of("*?[") == std::string::npos ? "no " + pattern : "no file matches " + pattern;
+  else
+    problem = std::to_string(at.size()) + " files match " + pattern + " (" + at[0].string() + ", " + at[1].string() +
+              (at.size() > 2 ? ", ..." : "") + ")";
   return "";
+}
+
+/// Refuses a --image or --reference pattern that could name a file outside the case folder.
+void checkCasePattern(const std::string& option, const std::string& pattern) {
+  const fs::path p(pattern);
+  bool up = false;
+  for (const fs::path& part : p) up = up || part == "..";
+  if (pattern.empty() || p.is_absolute() || up)
+    throw ParameterError(option, pattern, "must name a file inside each case folder (no leading / and no ..)");
 }
 
 /// Reads a finished case's results once: the reference-free checks from its report.json (left NaN if it cannot be
@@ -126,7 +160,7 @@ std::string caseFile(const fs::path& dir, const std::string& pattern, std::strin
 void readResults(Case& c, bool scored) {
   Json report;
   try {
-    report = readJsonFile(c.out + "/report.json");
+    report = readJsonFile(c.reportPath);
     double residual = 0, change = 0;
     for (const Json& o : report.at("objects")) {
       residual = std::max(residual, o.at("mean_image_residual_mm").get<double>());
@@ -146,7 +180,7 @@ void readResults(Case& c, bool scored) {
     return;
   }
   try {
-    const LabelMap result = readNifti<int32_t>(c.out + "/labels.nii.gz");
+    const LabelMap result = readNifti<int32_t>(c.labelsPath);
     const LabelMap reference = readNifti<int32_t>(c.reference);
     for (const Json& o : report.at("objects")) {
       ObjectScore s;
@@ -280,7 +314,14 @@ class Claim {
     if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
       ::close(fd_);
       fd_ = -1;
+      return;
     }
+    // Who holds it, for a person looking at the folder (the lock itself is what counts).
+    char host[256] = "";
+    ::gethostname(host, sizeof host - 1);
+    const std::string who = std::string(host) + " " + std::to_string(::getpid()) + "\n";
+    const bool noted = ::ftruncate(fd_, 0) == 0 && ::write(fd_, who.data(), who.size()) > 0;
+    (void)noted;
   }
   ~Claim() {
     if (fd_ >= 0) ::close(fd_);
@@ -297,7 +338,9 @@ class Claim {
 struct BatchSettings {
   std::string casesDir, scene, atlas, out, imageName = "image.nii.gz", referenceName;
   int jobs = 1;
-  bool redo = false;
+  bool redo = false, keepStale = false;
+  bool useBids = false;  ///< --bids: the cases are the images of a BIDS dataset, the results a BIDS derivative
+  BidsSelection bids;
   std::vector<std::string> forwarded;  ///< options after "--", for every case's `mskseg segment`
   fs::path outAbs;                     ///< `out`, absolute
 };
@@ -311,40 +354,70 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   if (dash != argvIn.end()) b.forwarded.assign(dash + 1, argvIn.end());
   CommandLine app(
       "batch",
-      "Segments every case of a cohort with one scene or atlas: each subfolder of --cases holding the image NAME is a "
-      "case; "
-      "a case folder's own scene.json, if present, replaces --scene for it. Each case runs `mskseg segment` in a "
-      "process of its own (a failing case ends alone) and writes OUT/<case>/ whole or not at all; its log goes to "
-      "OUT/logs/<case>.log. A rerun skips the cases whose OUT/<case>/report.json exists, unless --redo.");
-  app.add_option("--cases", b.casesDir, "the cohort folder")->required();
+      "Segments every case of a cohort with one scene or atlas: each subfolder of --cases holding the image is a case "
+      "(a case folder's own scene.json, if present, replaces --scene for it), or with --bids each image of a BIDS "
+      "dataset. Each case runs `mskseg segment` in a process of its own (a failing case ends alone) and writes "
+      "OUT/<case>/ (with --bids: OUT/sub-<label>/[ses-<label>/]anat/ and figures/, entity-named files, and "
+      "OUT/dataset_description.json) whole or not at all; its log goes to OUT/logs/<case>.log. A rerun skips the "
+      "cases already done by the same program version, scene or atlas, image and options (OUT/logs/<case>.json), "
+      "runs those done with other ones again (unless --keep-stale), and runs everything again with --redo.");
+  CLI::Option* casesOpt = app.add_option("--cases", b.casesDir, "the cohort folder");
+  app.add_option("--bids", b.bids.dataset,
+                 "a BIDS dataset instead of --cases: each sub-<label>/[ses-<label>/]anat/*_<suffix>.nii[.gz] is a "
+                 "case, its results go to OUT/sub-<label>/[ses-<label>/]anat/ as a BIDS derivative")
+      ->excludes(casesOpt);
+  app.add_option("--participant-label", b.bids.participants,
+                 "with --bids: only these subjects (labels, with or without sub-, comma-separated)")
+      ->delimiter(',');
+  app.add_option("--session", b.bids.sessions,
+                 "with --bids: only these sessions (labels, with or without ses-, comma-separated)")
+      ->delimiter(',');
+  app.add_option("--suffix", b.bids.suffix, "with --bids: the images' suffix (default T1w)");
   CLI::Option* sceneOpt = app.add_option("--scene", b.scene, "the scene of every case without a scene.json of its own");
   app.add_option("--atlas", b.atlas,
                  "an atlas folder (mskseg atlas) placed in every case by registration, instead of a scene")
       ->excludes(sceneOpt);
   app.add_option("--out", b.out, "output folder")->required();
   app.add_option("--image", b.imageName,
-                 "the image file in each case folder (default image.nii.gz), or a shell pattern matching one file "
-                 "there, e.g. '*_T1w.nii.gz' (quoted)");
+                 "the image file in each case folder (default image.nii.gz), or a path inside it whose parts may be "
+                 "shell patterns, matching one file: '*_T1w.nii.gz', 'anat/*_T1w.nii.gz' (quoted)");
   app.add_option("--reference", b.referenceName,
                  "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
                  "HD95 against it for the object's label (OUT/metrics.csv)");
   app.add_option("--jobs", b.jobs, "cases run at once, 1..64 (default 1; each case's --threads come after --)");
   app.add_flag("--redo", b.redo, "run the cases already done again");
+  app.add_flag("--keep-stale", b.keepStale,
+               "keep (and mark stale) the cases done earlier by another version, scene, atlas, image or options, "
+               "instead of running them again");
   app.footer(
       "-- OPTIONS: passed to every `mskseg segment`, e.g. -- --quality fast --no-qc (checked before any case runs). "
-      "Writes OUT/summary.csv (one row per case: status (ok, failed, done by an earlier run, skipped: no image, "
-      "elsewhere: another batch on OUT is running it, not-started: the batch was stopped first), quality (ok, doubtful "
-      "or failed: the segmentation's status "
-      "judged from the image alone, report.json's \"status\"), exit code, seconds, peak memory, the checks that need "
-      "no "
-      "reference: largest mean image residual and volume change of an object, voxels inside two objects; Dice; "
-      "message), rewritten as each case ends; OUT/metrics.csv with --reference; OUT/batch.json (the command, "
-      "version, counts, times). Exit code 0 if every case ends ok, 1 if any case failed (the others still run), 2 "
-      "for a usage error. SIGTERM, SIGINT or SIGHUP end the running cases and remove what they had half-written, write "
-      "the summary and exit 128 + the signal; the cases also end if the batch is killed outright (a rerun removes "
-      "what they left). Several batches may "
-      "share OUT (each case is claimed by one).");
+      "Writes OUT/summary.csv (one row per case: status (ok, failed, done by an earlier run, stale: done earlier with "
+      "other inputs and kept by --keep-stale, skipped: no image, elsewhere: another batch on OUT is running it, "
+      "interrupted: the batch was stopped while it ran, not-started: the batch was stopped first), quality (ok, "
+      "doubtful or failed: the segmentation's status judged from the image alone, the report's \"status\"), exit "
+      "code, seconds, peak memory, the checks that need no reference: largest mean image residual and volume change "
+      "of an object, voxels inside two objects; Dice; message), rewritten as each case ends; OUT/metrics.csv with "
+      "--reference; OUT/batch.json (the command, version, counts, times). Exit code 0 if every case ends ok, 1 if "
+      "any case failed (the others still run), 2 for a usage error. SIGTERM, SIGINT or SIGHUP end the running cases "
+      "and remove what they had half-written, write the summary and exit 128 + the signal; the cases also end if the "
+      "batch is killed outright (a rerun removes what they left). Several batches may share OUT, on one machine or "
+      "several sharing its file system: each case is claimed by one (a lock on OUT/logs/.<case>.claim, which names "
+      "the host and process holding it).");
   if (!parseArgs(app, argv)) return false;
+  b.useBids = !b.bids.dataset.empty();
+  if (!b.useBids && b.casesDir.empty()) throw UsageError("give the cohort: --cases FOLDER or --bids DATASET");
+  if (b.useBids) {
+    for (const char* own : {"--image", "--reference"})
+      if (app.count(own) > 0)
+        throw UsageError(std::string(own) + " with --bids: the images are the dataset's *_<suffix>.nii[.gz]");
+    b.casesDir = b.bids.dataset;
+  } else {
+    for (const char* bidsOnly : {"--participant-label", "--session", "--suffix"})
+      if (app.count(bidsOnly) > 0) throw UsageError(std::string(bidsOnly) + " needs --bids");
+    checkCasePattern("--image", b.imageName);
+    if (!b.referenceName.empty()) checkCasePattern("--reference", b.referenceName);
+  }
+  if (b.redo && b.keepStale) throw UsageError("--redo and --keep-stale ask for opposite things");
   // `-- --atlas DIR` is the batch's --atlas given after the separator.
   if (auto it = std::find(b.forwarded.begin(), b.forwarded.end(), std::string("--atlas")); it != b.forwarded.end()) {
     if (it + 1 == b.forwarded.end()) throw UsageError("--atlas after -- needs a folder");
@@ -391,6 +464,27 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
 /// Returns how many can run.
 int findCases(const BatchSettings& b, std::vector<Case>& cases) {
   std::error_code ec;
+  if (b.useBids) {
+    for (const BidsCase& bc : findBidsCases(b.bids)) {
+      Case c;
+      c.name = bc.prefix;
+      c.image = bc.image;
+      c.bids = true;
+      c.bidsCase = bc;
+      c.atlas = b.atlas;
+      c.scene = b.scene;
+      c.out = (b.outAbs / ".work" / c.name).string();
+      c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
+      c.reportPath = bidsReportPath(b.outAbs.string(), bc);
+      c.labelsPath = bidsLabelsPath(b.outAbs.string(), bc);
+      cases.push_back(c);
+    }
+    if (cases.empty())
+      throw IoError(b.bids.dataset,
+                    "no case: no selected sub-*/[ses-*/]anat/ folder holds a *_" + b.bids.suffix + ".nii[.gz] image");
+    if (b.scene.empty() && b.atlas.empty()) throw UsageError("missing required option --scene or --atlas");
+    return static_cast<int>(cases.size());
+  }
   std::vector<fs::path> folders;
   for (const auto& e : fs::directory_iterator(b.casesDir, ec))
     if (e.is_directory() && e.path().filename().string()[0] != '.' &&
@@ -409,6 +503,8 @@ int findCases(const BatchSettings& b, std::vector<Case>& cases) {
     if (b.atlas.empty()) c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : b.scene;
     c.out = (b.outAbs / c.name).string();
     c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
+    c.reportPath = c.out + "/report.json";
+    c.labelsPath = c.out + "/labels.nii.gz";
     if (c.image.empty() && problem.rfind("no ", 0) == 0) {
       c.status = "skipped";
       c.message = problem;
@@ -433,12 +529,12 @@ int findCases(const BatchSettings& b, std::vector<Case>& cases) {
 }
 
 /// A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
-/// writeFolderAtomically()); the case itself has no report and runs again, so its stale staging goes (not one whose
-/// process still runs, e.g. another batch on the same folder).
-void removeStaleStaging(const fs::path& outAbs, const std::vector<Case>& cases) {
+/// writeFolderAtomically(), or OUT/.work/.<case>.partial<pid> with --bids); the case itself has no report and runs
+/// again, so its stale staging goes (not one whose process still runs, e.g. another batch on the same folder).
+void removeStaleStagingIn(const fs::path& dir, const std::vector<Case>& cases) {
   std::error_code ec;
-  if (!fs::is_directory(outAbs, ec)) return;
-  for (const auto& e : fs::directory_iterator(outAbs, ec)) {
+  if (!fs::is_directory(dir, ec)) return;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string n = e.path().filename().string();
     for (const Case& c : cases) {
       const std::string prefix = "." + c.name + ".partial";
@@ -450,13 +546,106 @@ void removeStaleStaging(const fs::path& outAbs, const std::vector<Case>& cases) 
   }
 }
 
-/// Records how a case's process ended (and its results if it succeeded); returns the line to report.
-std::string caseEnded(Case& c, int status, const struct rusage& ru, const std::string& exe, bool scored) {
+void removeStaleStaging(const fs::path& outAbs, const std::vector<Case>& cases) {
+  for (const fs::path& dir : {outAbs, outAbs / ".work"}) removeStaleStagingIn(dir, cases);
+}
+
+/// OUT/logs/<case>.json: how a finished case ended and what produced it, read back by a rerun that skips the case.
+std::string recordPath(const BatchSettings& b, const Case& c) {
+  return fileInFolder((b.outAbs / "logs").string(), c.name + ".json");
+}
+
+void writeRecord(const BatchSettings& b, const Case& c) {
+  Json j;
+  j["status"] = c.status;
+  j["exit_code"] = c.exitCode;
+  j["seconds"] = c.seconds;
+  j["peak_rss_mib"] = c.peakRssMiB;
+  j["fingerprint"] = c.fingerprint;
+  j["finished"] = isoTime(std::time(nullptr));
+  writeJsonFile(recordPath(b, c), j);
+}
+
+/// Restores the figures of an earlier run of the case from its record; returns that run's fingerprint ("" if there
+/// is no readable record).
+std::string readRecord(const BatchSettings& b, Case& c) {
+  try {
+    const Json j = readJsonFile(recordPath(b, c));
+    c.exitCode = jsonInt(j.at("exit_code"));
+    c.seconds = j.at("seconds").get<double>();
+    c.peakRssMiB = j.at("peak_rss_mib").get<double>();
+    return j.at("fingerprint").get<std::string>();
+  } catch (const std::exception&) {
+    return "";
+  }
+}
+
+/// A digest of what produces the case's result: the program's version, the scene and its templates (or the atlas,
+/// whose atlas.json holds its files' checksums), the options passed to `segment`, and the image. Empty if an input
+/// cannot be read (the case then runs and fails on its own). `scenes` caches the scenes' part.
+std::string fingerprintOf(const BatchSettings& b, const Case& c, std::map<std::string, std::string>& scenes) {
+  try {
+    std::string text = std::string("mskseg ") + MSK_VERSION + "\n";
+    if (!c.atlas.empty()) {
+      text += "atlas " + sha256File(c.atlas + "/atlas.json") + "\n";
+    } else {
+      auto it = scenes.find(c.scene);
+      if (it == scenes.end()) {
+        std::string part = "scene " + sha256File(c.scene);
+        for (const SceneObject& o : loadScene(c.scene).objects) part += " " + sha256File(o.templatePath);
+        it = scenes.emplace(c.scene, part).first;
+      }
+      text += it->second + "\n";
+    }
+    for (const std::string& a : b.forwarded) text += a + '\x1f';
+    text += "\nimage " + sha256File(c.image) + "\n";
+    return sha256Text(text).substr(0, 16);
+  } catch (const Error&) {
+    return "";
+  }
+}
+
+/// Whether case `c`, found finished, is left as it is: `done` (its record's fingerprint matches, or there is no record
+/// to compare), or `stale` with --keep-stale; false if it must run again (with --redo, or when what produces it has
+/// changed).
+bool keepFinished(const BatchSettings& b, Case& c, bool scored) {
+  if (b.redo || !fs::exists(c.reportPath)) return false;
+  const std::string was = readRecord(b, c);
+  if (!was.empty() && !c.fingerprint.empty() && was != c.fingerprint) {
+    if (!b.keepStale) {
+      c.exitCode = -1;
+      c.seconds = c.peakRssMiB = 0;
+      say(c.name +
+          ": runs again: its result came from another version, scene, atlas, image or options "
+          "(--keep-stale keeps it)");
+      return false;
+    }
+    c.status = "stale";
+    readResults(c, scored);
+    c.message = "done by an earlier run with another version, scene, atlas, image or options";
+    return true;
+  }
+  c.status = "done";
+  readResults(c, scored);
+  return true;
+}
+
+/// Records how a case's process ended (and its results if it succeeded; with --bids, after publishing them into the
+/// derivative's layout); returns the line to report.
+std::string caseEnded(const BatchSettings& b, Case& c, int status, const struct rusage& ru, const std::string& exe,
+                      bool scored) {
   c.peakRssMiB = static_cast<double>(ru.ru_maxrss) / 1024.0;
   c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   if (WIFEXITED(status) && c.exitCode == 0) {
     c.status = "ok";
-    readResults(c, scored);
+    try {
+      if (c.bids) publishBidsCase(c.out, b.outAbs.string(), c.bidsCase, b.bids.suffix);
+      readResults(c, scored);
+      writeRecord(b, c);
+    } catch (const Error& e) {
+      c.status = "failed";
+      c.message = e.what();
+    }
   } else {
     c.status = "failed";
     c.message = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status)) +
@@ -510,12 +699,11 @@ int runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector
         say(c.name + ": " + c.status + ": " + c.message);
         continue;
       }
-      if (!b.redo && fs::exists(c.out + "/report.json")) {  // finished by another batch since the cases were listed
-        c.status = "done";
+      if (keepFinished(b, c, scored)) {  // finished by another batch since the cases were listed
         ++doneEarlier;
-        readResults(c, scored);
         continue;
       }
+      if (c.bids) fs::remove_all(c.out, ec);  // what a batch killed while publishing left
       running[startCase(exe, c, b.forwarded)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
     }
     if (running.empty()) break;
@@ -533,9 +721,10 @@ int runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector
     c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - it->second.start).count();
     running.erase(it);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)  // a case ended mid-write leaves its staging folder
-      fs::remove_all(b.outAbs / ("." + c.name + ".partial" + std::to_string(pid)), ec);
-    std::string line = caseEnded(c, status, ru, exe, scored);
+      fs::remove_all(fs::path(c.out).parent_path() / ("." + c.name + ".partial" + std::to_string(pid)), ec);
+    std::string line = caseEnded(b, c, status, ru, exe, scored);
     if (stopping && c.status == "failed") {
+      c.status = "interrupted";
       c.message = "stopped: the batch was asked to stop (signal " + std::to_string(stopSignal) + ")";
       line = c.name + " " + c.status + ": " + c.message;
     }
@@ -558,7 +747,7 @@ int runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector
 
 /// How the cases ended.
 struct CaseCounts {
-  long ok = 0, failed = 0, skipped = 0, doneEarlier = 0, elsewhere = 0, notStarted = 0;
+  long ok = 0, failed = 0, skipped = 0, doneEarlier = 0, stale = 0, elsewhere = 0, interrupted = 0, notStarted = 0;
   long doubtful = 0, qualityFailed = 0;  ///< cases that ran (or were done earlier) with that quality status
 };
 
@@ -569,11 +758,13 @@ CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
     n.failed += c.status == "failed";
     n.skipped += c.status == "skipped";
     n.elsewhere += c.status == "elsewhere";
+    n.interrupted += c.status == "interrupted";
+    n.stale += c.status == "stale";
     n.notStarted += c.status == "not-started";
     n.doubtful += c.quality == "doubtful";
     n.qualityFailed += c.quality == "failed";
   }
-  n.doneEarlier = doneEarlier;
+  n.doneEarlier = doneEarlier - n.stale;
   return n;
 }
 
@@ -584,8 +775,10 @@ void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argv
   counts["ok"] = n.ok;
   counts["failed"] = n.failed;
   counts["done_earlier"] = n.doneEarlier;
+  counts["stale_kept"] = n.stale;
   counts["skipped_no_image"] = n.skipped;
   counts["running_elsewhere"] = n.elsewhere;
+  counts["interrupted"] = n.interrupted;
   counts["not_started"] = n.notStarted;
   counts["quality_doubtful"] = n.doubtful;
   counts["quality_failed"] = n.qualityFailed;
@@ -615,23 +808,30 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   const int runnable = findCases(b, cases);
   removeStaleStaging(b.outAbs, cases);
   std::error_code ec;
-  fs::create_directories(b.outAbs / "logs", ec);
-  if (ec) throw IoError((b.outAbs / "logs").string(), "cannot create folder: " + ec.message());
+  for (const fs::path& dir : {b.outAbs / "logs", b.outAbs / ".work"}) {
+    if (dir.filename() == ".work" && !b.useBids) continue;
+    fs::create_directories(dir, ec);
+    if (ec) throw IoError(dir.string(), "cannot create folder: " + ec.message());
+  }
+  if (b.useBids) {
+    std::string line = "mskseg batch";
+    for (const std::string& a : argvIn) line += " " + a;
+    writeBidsDescription(b.outAbs.string(), b.bids.dataset, line);
+  }
 
   // Cases done by an earlier run keep their results (and get scored, so the summary covers the whole cohort).
   const bool scored = !b.referenceName.empty();
   std::vector<size_t> todo;
   int doneEarlier = 0;
+  std::map<std::string, std::string> scenes;
   for (size_t i = 0; i < cases.size(); ++i) {
     Case& c = cases[i];
     if (c.status != "pending") continue;
-    if (!b.redo && fs::exists(c.out + "/report.json")) {
-      c.status = "done";
+    c.fingerprint = fingerprintOf(b, c, scenes);
+    if (keepFinished(b, c, scored))
       ++doneEarlier;
-      readResults(c, scored);
-    } else {
+    else
       todo.push_back(i);
-    }
   }
   say(std::to_string(runnable) + " case(s) in " + b.casesDir +
       (doneEarlier ? ", " + std::to_string(doneEarlier) + " done by an earlier run (--redo runs them again)"
@@ -644,6 +844,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   const std::time_t started = std::time(nullptr);
   const auto t0 = std::chrono::steady_clock::now();
   const int stoppedBy = runCases(b, cases, todo, doneEarlier);
+  fs::remove(b.outAbs / ".work", ec);  // only if it is empty
   const CaseCounts n = countCases(cases, doneEarlier);
   writeBatchJson(b, argvIn, n, started, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   if (stoppedBy != 0) {
@@ -652,10 +853,10 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
     return 128 + stoppedBy;
   }
   std::cout << "batch: " << n.ok << " ok, " << n.failed << " failed, " << n.doneEarlier << " done earlier, "
-            << n.skipped << " without " << b.imageName
+            << n.skipped << " without " << (b.useBids ? "an image" : b.imageName)
             << (n.elsewhere ? ", " + std::to_string(n.elsewhere) + " left to another batch running them" : "")
-            << "; segmentation doubtful in " << n.doubtful << ", failed in " << n.qualityFailed << " -> "
-            << b.outAbs.string() << "/summary.csv\n";
+            << (n.stale ? ", " + std::to_string(n.stale) + " stale kept" : "") << "; segmentation doubtful in "
+            << n.doubtful << ", failed in " << n.qualityFailed << " -> " << b.outAbs.string() << "/summary.csv\n";
   return n.failed > 0 ? 1 : 0;
 }
 

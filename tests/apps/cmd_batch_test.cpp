@@ -3,8 +3,11 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <filesystem>
+#include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -181,6 +184,177 @@ TEST(BatchCli, ImagePatternsFindOneFilePerCase) {
   EXPECT_NE(rows[3][12].find("no file matches"), std::string::npos) << rows[3][12];
 }
 
+// A pattern may name a subfolder of the case folder (BIDS-like anat/); one that would leave the case folder is refused.
+TEST(BatchCli, ImagePatternsMayNameSubfolders) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  fs::create_directories(cases + "/sub-01/anat");
+  fs::create_symlink(kSample + "image.nii.gz", cases + "/sub-01/anat/sub-01_T1w.nii.gz");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur");
+  auto r = runCli({"batch", "--cases", cases, "--scene", scene, "--out", out, "--image", "anat/*_T1w.nii.gz", "--",
+                   "--quality", "fast", "--no-qc"});
+  EXPECT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(fs::exists(out + "/sub-01/report.json"));
+  for (const std::string bad : {"../sub-01/anat/sub-01_T1w.nii.gz", "/etc/passwd"}) {
+    r = runCli({"batch", "--cases", cases, "--scene", scene, "--out", dir.file("out2"), "--image", bad});
+    EXPECT_EQ(r.exitCode, 2) << bad << ": " << r.err;
+    EXPECT_NE(r.err.find("inside each case folder"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("out2")));
+  }
+}
+
+// A rerun keeps the figures of the cases it skips; a case whose inputs changed (here the options passed to segment)
+// runs again, or with --keep-stale is kept and marked stale, never silently kept.
+TEST(BatchCli, RerunsKeepFiguresAndRedoWhatOtherInputsProduced) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  sampleCase(cases + "/p01");
+  const std::vector<std::string> base = {
+      "batch", "--cases", cases, "--scene", femurScene(dir.file("scene.json"), "femur"), "--out", out};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  auto r = runCli(with({"--", "--quality", "fast", "--no-qc"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto first = csvRows(out + "/summary.csv");
+  ASSERT_EQ(first.size(), 2u);
+  const auto written = fs::last_write_time(out + "/p01/report.json");
+
+  r = runCli(with({"--", "--quality", "fast", "--no-qc"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  auto rows = csvRows(out + "/summary.csv");
+  EXPECT_EQ(rows[1][1], "done");
+  for (size_t col : {3u, 4u, 5u}) EXPECT_EQ(rows[1][col], first[1][col]) << "column " << rows[0][col] << " kept";
+  EXPECT_EQ(fs::last_write_time(out + "/p01/report.json"), written);
+
+  r = runCli(with({"--keep-stale", "--", "--quality", "fast", "--no-qc", "--steps", "3"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  rows = csvRows(out + "/summary.csv");
+  EXPECT_EQ(rows[1][1], "stale");
+  EXPECT_EQ(fs::last_write_time(out + "/p01/report.json"), written);
+  EXPECT_EQ(msk::readJsonFile(out + "/batch.json").at("cases").at("stale_kept").get<int>(), 1);
+
+  r = runCli(with({"--", "--quality", "fast", "--no-qc", "--steps", "3"}));
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.err.find("p01: runs again"), std::string::npos) << r.err;
+  rows = csvRows(out + "/summary.csv");
+  EXPECT_EQ(rows[1][1], "ok");
+  EXPECT_EQ(msk::readJsonFile(out + "/p01/report.json").at("parameters").at("max_steps_per_level").get<int>(), 3);
+}
+
+namespace {
+/// The entities of a BIDS file name ("sub-01_ses-2_label-femur_desc-mskseg_dseg.nii.gz" -> sub=01, ses=2, label=femur,
+/// desc=mskseg, and "suffix" = dseg, "extension" = .nii.gz); empty if the name does not follow the rules (key-value
+/// pairs of letters and digits joined by _, then a suffix, then an extension).
+std::map<std::string, std::string> bidsEntities(const std::string& name) {
+  std::map<std::string, std::string> out;
+  const size_t dot = name.find('.');
+  if (dot == std::string::npos) return {};
+  out["extension"] = name.substr(dot);
+  std::vector<std::string> parts;
+  std::istringstream in(name.substr(0, dot));
+  std::string part;
+  while (std::getline(in, part, '_')) parts.push_back(part);
+  if (parts.size() < 2) return {};
+  auto alnum = [](const std::string& v) {
+    return !v.empty() &&
+           std::all_of(v.begin(), v.end(), [](char ch) { return std::isalnum(static_cast<unsigned char>(ch)); });
+  };
+  for (size_t i = 0; i + 1 < parts.size(); ++i) {
+    const size_t dash = parts[i].find('-');
+    if (dash == std::string::npos) return {};
+    const std::string key = parts[i].substr(0, dash), value = parts[i].substr(dash + 1);
+    if (!alnum(key) || !alnum(value) || out.count(key)) return {};
+    out[key] = value;
+  }
+  if (!alnum(parts.back())) return {};
+  out["suffix"] = parts.back();
+  if (parts[0].rfind("sub-", 0) != 0) return {};
+  return out;
+}
+}  // namespace
+
+// A BIDS dataset of three subjects, one with two sessions: every image is a case, the results follow the derivatives
+// layout (each file name parses back into entities that match its folder), with dataset_description.json, a dseg.tsv
+// and a sidecar naming the raw image; --participant-label and --session select; a missing participant is one line.
+TEST(BatchCli, BidsDatasetBecomesADerivative) {
+  msk::test::ScratchDir dir;
+  const std::string raw = dir.file("raw"), out = dir.file("derivatives/mskseg");
+  fs::create_directories(dir.file("derivatives"));
+  for (const std::string f : {"sub-01/anat/sub-01_T1w.nii.gz", "sub-02/ses-1/anat/sub-02_ses-1_T1w.nii.gz",
+                              "sub-02/ses-2/anat/sub-02_ses-2_T1w.nii.gz", "sub-03/anat/sub-03_T1w.nii.gz"}) {
+    fs::create_directories(fs::path(raw + "/" + f).parent_path());
+    fs::create_symlink(kSample + "image.nii.gz", raw + "/" + f);
+  }
+  fs::create_symlink(kSample + "labels.nii.gz", raw + "/sub-01/anat/sub-01_dseg.nii.gz");  // not a T1w: no case
+  msk::test::writeBytes(raw + "/dataset_description.json", "{\"Name\": \"Thighs\", \"BIDSVersion\": \"1.9.0\"}");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur_left");
+  auto r = runCli({"batch", "--bids", raw, "--scene", scene, "--out", out, "--", "--quality", "fast"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+
+  const msk::Json description = msk::readJsonFile(out + "/dataset_description.json");
+  EXPECT_EQ(description.at("DatasetType").get<std::string>(), "derivative");
+  EXPECT_EQ(description.at("GeneratedBy")[0].at("Name").get<std::string>(), "mskseg");
+  EXPECT_FALSE(description.at("GeneratedBy")[0].at("Version").get<std::string>().empty());
+  EXPECT_NE(description.at("Name").get<std::string>().find("Thighs"), std::string::npos);
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 5u);
+  const std::vector<std::string> names = {"sub-01", "sub-02_ses-1", "sub-02_ses-2", "sub-03"};
+  for (size_t i = 0; i < names.size(); ++i) {
+    EXPECT_EQ(rows[i + 1][0], names[i]);
+    EXPECT_EQ(rows[i + 1][1], "ok");
+  }
+
+  // Every file below sub-*: its name parses into entities, sub (and ses) match the folders, and each case has its
+  // label map, dseg.tsv, sidecar, mesh and pictures.
+  std::map<std::string, std::set<std::string>> kinds;  // case -> "<suffix><extension>" (and label) of its files
+  for (const auto& e : fs::recursive_directory_iterator(out)) {
+    const fs::path rel = fs::relative(e.path(), out);
+    if (e.is_directory() || rel.begin()->string().rfind("sub-", 0) != 0) continue;
+    const auto ent = bidsEntities(e.path().filename().string());
+    ASSERT_FALSE(ent.empty()) << "not a BIDS name: " << rel;
+    std::vector<std::string> folders;
+    for (const fs::path& p : rel.parent_path()) folders.push_back(p.string());
+    ASSERT_GE(folders.size(), 2u) << rel;
+    EXPECT_EQ(folders[0], "sub-" + ent.at("sub")) << rel;
+    if (ent.count("ses")) EXPECT_EQ(folders[1], "ses-" + ent.at("ses")) << rel;
+    EXPECT_TRUE(folders.back() == "anat" || folders.back() == "figures") << rel;
+    const std::string key = "sub-" + ent.at("sub") + (ent.count("ses") ? "_ses-" + ent.at("ses") : "");
+    kinds[key].insert((ent.count("label") ? ent.at("label") + ":" : "") + ent.at("suffix") + ent.at("extension"));
+  }
+  ASSERT_EQ(kinds.size(), 4u);
+  for (const auto& [key, files] : kinds) {
+    for (const std::string want : {"dseg.nii.gz", "dseg.tsv", "dseg.json", "femurleft:mesh.vtk", "femurleft:qc.png"})
+      EXPECT_TRUE(files.count(want)) << key << " has no " << want;
+  }
+  const std::string anat = out + "/sub-02/ses-2/anat/sub-02_ses-2_";
+  EXPECT_EQ(msk::test::readBytes(anat + "desc-mskseg_dseg.tsv"), "index\tname\n1\tfemur_left\n");
+  const msk::Json sidecar = msk::readJsonFile(anat + "desc-mskseg_dseg.json");
+  EXPECT_EQ(sidecar.at("Sources")[0].get<std::string>(), "bids:raw:sub-02/ses-2/anat/sub-02_ses-2_T1w.nii.gz");
+  EXPECT_EQ(sidecar.at("objects")[0].at("name").get<std::string>(), "femur_left");
+  const msk::LabelMap labels = msk::readNifti<int32_t>(anat + "desc-mskseg_dseg.nii.gz");
+  EXPECT_GT(std::count(labels.data.begin(), labels.data.end(), 1), 1000);
+  EXPECT_FALSE(fs::exists(out + "/.work"));
+
+  // Selection: one session of one subject, into another folder.
+  const std::string some = dir.file("some");
+  r = runCli({"batch", "--bids", raw, "--scene", scene, "--out", some, "--participant-label", "sub-02", "--session",
+              "2", "--", "--quality", "fast", "--no-qc"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_EQ(csvRows(some + "/summary.csv").size(), 2u);
+  EXPECT_TRUE(fs::exists(some + "/sub-02/ses-2/anat/sub-02_ses-2_desc-mskseg_dseg.nii.gz"));
+  EXPECT_FALSE(fs::exists(some + "/sub-02/ses-1"));
+  EXPECT_FALSE(fs::exists(some + "/sub-02/ses-2/figures"));
+
+  r = runCli({"batch", "--bids", raw, "--scene", scene, "--out", dir.file("none"), "--participant-label", "09"});
+  EXPECT_EQ(r.exitCode, 2) << r.err;
+  EXPECT_NE(r.err.find("has no folder sub-09"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("none")));
+}
+
 // A case whose segmentation cannot have worked (flat but for one corner voxel: no edge) ends ok as a process, its
 // outputs written, and the summary's quality column says "failed"; batch.json counts it and the batch's exit code stays
 // 0.
@@ -252,7 +426,7 @@ TEST(BatchCli, TermStopsTheRunningCasesAndWritesTheSummary) {
   EXPECT_TRUE(waitForNoProcess(cases, 10).empty()) << "a case outlived its batch";
   const auto rows = csvRows(out + "/summary.csv");
   ASSERT_EQ(rows.size(), 3u);
-  EXPECT_EQ(rows[1][1], "failed");
+  EXPECT_EQ(rows[1][1], "interrupted");
   EXPECT_NE(rows[1].back().find("asked to stop"), std::string::npos) << rows[1].back();
   EXPECT_EQ(rows[2][1], "not-started");
   for (const auto& e : fs::directory_iterator(out))

@@ -7,4 +7,7 @@ namespace msk {
 /// Lower-case hexadecimal SHA-256 of the file's bytes. Throws IoError naming the file if it cannot be read.
 std::string sha256File(const std::string& path);
 
+/// Lower-case hexadecimal SHA-256 of `bytes`.
+std::string sha256Text(const std::string& bytes);
+
 }  // namespace msk
