@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "batch_bids.h"
+#include "cohort.h"
 #include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -46,192 +47,6 @@ namespace fs = std::filesystem;
 
 namespace msk::cli {
 namespace {
-
-/// One object's scores against the case's reference labels.
-struct ObjectScore {
-  std::string name;
-  int label = 0;
-  double dice = 0, assdMm = 0, hd95Mm = 0;
-};
-
-/// One case: where it reads and writes, and how it ended.
-struct Case {
-  std::string name, image, scene, out, log;
-  std::string atlas;                        // with --atlas: the atlas folder (then `scene` is empty)
-  std::string reference, referenceProblem;  // with --reference: the case's reference labels, or why there are none
-  std::string reportPath, labelsPath;       // where the finished case's report and label map are
-  bool bids = false;                        // with --bids: `out` is a work folder published into the BIDS layout
-  BidsCase bidsCase;
-  std::string fingerprint;  // of what produces the case: version, scene or atlas, options, image
-  // ok | failed | done (by an earlier run) | stale (done by an earlier run with other inputs, kept by --keep-stale) |
-  // skipped (no image) | elsewhere (another batch runs it) | interrupted (the batch was stopped while it ran) |
-  // not-started (the batch was stopped first) | pending
-  std::string status = "pending";
-  std::string message;
-  int exitCode = -1;
-  double seconds = 0, peakRssMiB = 0;
-  std::vector<ObjectScore> scores;
-  double meanDice = std::nan(""), minDice = std::nan("");  ///< over `scores` (NaN: none)
-  // Signs of trouble that need no reference, from the case's report.json (NaN: not read).
-  double worstResidualMm = std::nan("");       ///< largest mean image residual of an object
-  double worstVolumeChangePct = std::nan("");  ///< largest |volume / template volume − 1| of an object, %
-  double overlapVoxels = std::nan("");         ///< voxels inside two objects
-  std::string quality;  ///< the report's status from the image alone: ok | doubtful | failed (empty: not read)
-};
-
-std::string csvField(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
-  return q + "\"";
-}
-
-std::string fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
-
-std::string orEmpty(double v, int digits) { return std::isfinite(v) ? fixed(v, digits) : ""; }
-
-/// The last line of the case's log that reports an error (what `mskseg segment` printed before failing), else its
-/// last non-empty line.
-std::string errorLine(const std::string& logPath) {
-  std::ifstream in(logPath);
-  std::string line, lastError, last;
-  while (std::getline(in, line)) {
-    if (line.empty()) continue;
-    last = line;
-    if (line.find("error") != std::string::npos) lastError = line;
-  }
-  return lastError.empty() ? last : lastError;
-}
-
-/// The file of case folder `dir` named `pattern`: a path inside the folder whose parts may be shell patterns, such as
-/// "*_T1w.nii.gz" or "anat/*_T1w.nii.gz", matching exactly one file. Empty with `problem` set if there is none or more
-/// than one.
-std::string caseFile(const fs::path& dir, const std::string& pattern, std::string& problem) {
-  problem.clear();
-  std::vector<std::string> parts;
-  for (const fs::path& part : fs::path(pattern))
-    if (!part.empty() && part != ".") parts.push_back(part.string());
-  std::vector<fs::path> at = {fs::path()};  // matches so far, relative to dir
-  std::error_code ec;
-  for (size_t k = 0; k < parts.size(); ++k) {
-    const bool last = k + 1 == parts.size();
-    std::vector<fs::path> next;
-    for (const fs::path& base : at) {
-      if (parts[k].find_first_of("*?[") == std::string::npos) {
-        const fs::path candidate = base / parts[k];
-        if (last ? fs::is_regular_file(dir / candidate, ec) : fs::is_directory(dir / candidate, ec))
-          next.push_back(candidate);
-        continue;
-      }
-      std::vector<fs::path> hits;
-      for (const auto& e : fs::directory_iterator(dir / base, ec))
-        if ((last ? e.is_regular_file() : e.is_directory()) &&
-            ::fnmatch(parts[k].c_str(), e.path().filename().c_str(), FNM_PERIOD) == 0)
-          hits.push_back(base / e.path().filename());
-      std::sort(hits.begin(), hits.end());
-      next.insert(next.end(), hits.begin(), hits.end());
-    }
-    at = next;
-  }
-  if (at.size() == 1 && !parts.empty()) return fs::absolute(dir / at[0]).lexically_normal().string();
-  if (at.empty() || parts.empty())
-    problem = pattern.find_first_of("*?[") == std::string::npos ? "no " + pattern : "no file matches " + pattern;
-  else
-    problem = std::to_string(at.size()) + " files match " + pattern + " (" + at[0].string() + ", " + at[1].string() +
-              (at.size() > 2 ? ", ..." : "") + ")";
-  return "";
-}
-
-/// Refuses a --image or --reference pattern that could name a file outside the case folder.
-void checkCasePattern(const std::string& option, const std::string& pattern) {
-  const fs::path p(pattern);
-  bool up = false;
-  for (const fs::path& part : p) up = up || part == "..";
-  if (pattern.empty() || p.is_absolute() || up)
-    throw ParameterError(option, pattern, "must name a file inside each case folder (no leading / and no ..)");
-}
-
-/// Reads a finished case's results once: the reference-free checks from its report.json (left NaN if it cannot be
-/// read) and, with `scored`, each object's scores (the names and labels the report lists) against the reference.
-void readResults(Case& c, bool scored) {
-  Json report;
-  try {
-    report = readJsonFile(c.reportPath);
-    double residual = 0, change = 0;
-    for (const Json& o : report.at("objects")) {
-      residual = std::max(residual, o.at("mean_image_residual_mm").get<double>());
-      const double v = o.at("volume_mm3").get<double>(), v0 = o.at("template_volume_mm3").get<double>();
-      if (v0 > 0) change = std::max(change, 100.0 * std::abs(v / v0 - 1.0));
-    }
-    c.worstResidualMm = residual;
-    c.worstVolumeChangePct = change;
-    c.overlapVoxels = report.at("overlap_voxels").get<double>();
-    c.quality = report.at("status").get<std::string>();
-  } catch (const std::exception& e) {
-    c.message = std::string("report not read: ") + e.what();
-  }
-  if (!scored) return;
-  if (c.reference.empty()) {
-    c.message = c.referenceProblem;
-    return;
-  }
-  try {
-    const LabelMap result = readNifti<int32_t>(c.labelsPath);
-    const LabelMap reference = readNifti<int32_t>(c.reference);
-    for (const Json& o : report.at("objects")) {
-      ObjectScore s;
-      s.name = o.at("name").get<std::string>();
-      s.label = o.at("label").get<int>();
-      const SegmentationMetrics m = labelMetrics(result, s.label, reference, s.label);
-      s.dice = m.dice;
-      s.assdMm = m.assd;
-      s.hd95Mm = m.hd95;
-      c.scores.push_back(s);
-    }
-    if (!c.scores.empty()) {
-      double sum = 0, low = 1;
-      for (const ObjectScore& s : c.scores) {
-        sum += s.dice;
-        low = std::min(low, s.dice);
-      }
-      c.meanDice = sum / static_cast<double>(c.scores.size());
-      c.minDice = low;
-    }
-  } catch (const std::exception& e) {
-    c.scores.clear();
-    c.message = std::string("not scored: ") + e.what();
-  }
-}
-
-void writeSummary(const std::string& out, const std::vector<Case>& cases, bool scored) {
-  writeAtomically(out + "/summary.csv", [&](const std::string& tmp) {
-    std::ofstream f(tmp);
-    f << "case,status,quality,exit_code,seconds,peak_rss_mib,max_residual_mm,max_volume_change_pct,overlap_voxels,"
-         "objects_scored,mean_dice,min_dice,message\n";
-    for (const Case& c : cases) {
-      f << csvField(c.name) << ',' << c.status << ',' << c.quality << ','
-        << (c.exitCode >= 0 ? std::to_string(c.exitCode) : "") << ',' << (c.seconds > 0 ? fixed(c.seconds, 2) : "")
-        << ',' << (c.peakRssMiB > 0 ? fixed(c.peakRssMiB, 1) : "") << ',' << orEmpty(c.worstResidualMm, 3) << ','
-        << orEmpty(c.worstVolumeChangePct, 2) << ',' << orEmpty(c.overlapVoxels, 0) << ',' << c.scores.size() << ','
-        << orEmpty(c.meanDice, 4) << ',' << orEmpty(c.minDice, 4) << ',' << csvField(c.message) << '\n';
-    }
-    if (!f.flush()) throw IoError(out + "/summary.csv", "cannot write");
-  });
-  if (!scored) return;
-  writeAtomically(out + "/metrics.csv", [&](const std::string& tmp) {
-    std::ofstream f(tmp);
-    f << "case,object,label,dice,assd_mm,hd95_mm\n";
-    for (const Case& c : cases)
-      for (const ObjectScore& s : c.scores)
-        f << csvField(c.name) << ',' << csvField(s.name) << ',' << s.label << ',' << fixed(s.dice, 4) << ','
-          << fixed(s.assdMm, 3) << ',' << fixed(s.hd95Mm, 3) << '\n';
-    if (!f.flush()) throw IoError(out + "/metrics.csv", "cannot write");
-  });
-}
 
 std::string isoTime(std::time_t t) {
   char buf[32];
@@ -301,53 +116,9 @@ class StopSignals {
   struct sigaction old_[3];
 };
 
-/// A case claimed by this batch: an exclusive lock on OUT/logs/.<case>.claim, held while the case runs. Another batch
-/// on the same output folder (a rerun started meanwhile, another job of a cluster array) leaves the case alone; the
-/// kernel releases the lock however the batch ends, so no claim outlives its batch.
-class Claim {
- public:
-  /// Tries to claim the case; held() says whether it did.
-  Claim(const fs::path& logs, const std::string& caseName) {
-    const std::string path = fileInFolder(logs.string(), "." + caseName + ".claim");
-    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd_ < 0) throw IoError(path, std::string("cannot open the claim file: ") + std::strerror(errno));
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      ::close(fd_);
-      fd_ = -1;
-      return;
-    }
-    // Who holds it, for a person looking at the folder (the lock itself is what counts).
-    char host[256] = "";
-    ::gethostname(host, sizeof host - 1);
-    const std::string who = std::string(host) + " " + std::to_string(::getpid()) + "\n";
-    const bool noted = ::ftruncate(fd_, 0) == 0 && ::write(fd_, who.data(), who.size()) > 0;
-    (void)noted;
-  }
-  ~Claim() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Claim(const Claim&) = delete;
-  Claim& operator=(const Claim&) = delete;
-  bool held() const { return fd_ >= 0; }
-
- private:
-  int fd_ = -1;
-};
-
-/// What a batch was asked to do.
-struct BatchSettings {
-  std::string casesDir, scene, atlas, out, imageName = "image.nii.gz", referenceName;
-  int jobs = 1;
-  bool redo = false, keepStale = false;
-  bool useBids = false;  ///< --bids: the cases are the images of a BIDS dataset, the results a BIDS derivative
-  BidsSelection bids;
-  std::vector<std::string> forwarded;  ///< options after "--", for every case's `mskseg segment`
-  fs::path outAbs;                     ///< `out`, absolute
-};
-
 /// The batch's command line; the options after "--" are checked as `mskseg segment` would (a mistake in them stops
 /// the batch before anything runs or is written). Returns false if --help was asked.
-bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
+bool parseBatch(const std::vector<std::string>& argvIn, CohortSettings& b) {
   std::vector<std::string> argv;
   const auto dash = std::find(argvIn.begin(), argvIn.end(), std::string("--"));
   argv.assign(argvIn.begin(), dash);
@@ -460,102 +231,12 @@ bool parseBatch(const std::vector<std::string>& argvIn, BatchSettings& b) {
   return true;
 }
 
-/// The cases: subfolders holding the image, in name order; hidden folders and the output folder are not cases.
-/// Returns how many can run.
-int findCases(const BatchSettings& b, std::vector<Case>& cases) {
-  std::error_code ec;
-  if (b.useBids) {
-    for (const BidsCase& bc : findBidsCases(b.bids)) {
-      Case c;
-      c.name = bc.prefix;
-      c.image = bc.image;
-      c.bids = true;
-      c.bidsCase = bc;
-      c.atlas = b.atlas;
-      c.scene = b.scene;
-      c.out = (b.outAbs / ".work" / c.name).string();
-      c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
-      c.reportPath = bidsReportPath(b.outAbs.string(), bc);
-      c.labelsPath = bidsLabelsPath(b.outAbs.string(), bc);
-      cases.push_back(c);
-    }
-    if (cases.empty())
-      throw IoError(b.bids.dataset,
-                    "no case: no selected sub-*/[ses-*/]anat/ folder holds a *_" + b.bids.suffix + ".nii[.gz] image");
-    if (b.scene.empty() && b.atlas.empty()) throw UsageError("missing required option --scene or --atlas");
-    return static_cast<int>(cases.size());
-  }
-  std::vector<fs::path> folders;
-  for (const auto& e : fs::directory_iterator(b.casesDir, ec))
-    if (e.is_directory() && e.path().filename().string()[0] != '.' &&
-        fs::absolute(e.path()).lexically_normal() != b.outAbs)
-      folders.push_back(e.path());
-  if (ec) throw IoError(b.casesDir, "cannot list: " + ec.message());
-  std::sort(folders.begin(), folders.end());
-  int runnable = 0;
-  for (const fs::path& f : folders) {
-    Case c;
-    c.name = f.filename().string();
-    std::string problem;
-    c.image = caseFile(f, b.imageName, problem);
-    if (!b.referenceName.empty()) c.reference = caseFile(f, b.referenceName, c.referenceProblem);
-    c.atlas = b.atlas;
-    if (b.atlas.empty()) c.scene = fs::exists(f / "scene.json") ? fs::absolute(f / "scene.json").string() : b.scene;
-    c.out = (b.outAbs / c.name).string();
-    c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
-    c.reportPath = c.out + "/report.json";
-    c.labelsPath = c.out + "/labels.nii.gz";
-    if (c.image.empty() && problem.rfind("no ", 0) == 0) {
-      c.status = "skipped";
-      c.message = problem;
-    } else if (c.image.empty()) {
-      c.status = "failed";
-      c.message = problem;
-    } else if (c.scene.empty() && c.atlas.empty()) {
-      c.status = "failed";
-      c.message = "no scene: give --scene or put a scene.json in the case folder";
-      c.exitCode = 2;
-    } else {
-      ++runnable;
-    }
-    cases.push_back(c);
-  }
-  if (b.scene.empty() && b.atlas.empty() &&
-      std::none_of(cases.begin(), cases.end(), [](const Case& c) { return !c.scene.empty(); }))
-    throw UsageError("missing required option --scene or --atlas (no case folder has a scene.json of its own)");
-  if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
-    throw IoError(b.casesDir, "no case: no subfolder holds " + b.imageName);
-  return runnable;
-}
-
-/// A batch killed while a case was writing leaves that case's staging folder (OUT/.<case>.partial<pid>, see
-/// writeFolderAtomically(), or OUT/.work/.<case>.partial<pid> with --bids); the case itself has no report and runs
-/// again, so its stale staging goes (not one whose process still runs, e.g. another batch on the same folder).
-void removeStaleStagingIn(const fs::path& dir, const std::vector<Case>& cases) {
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string n = e.path().filename().string();
-    for (const Case& c : cases) {
-      const std::string prefix = "." + c.name + ".partial";
-      if (n.rfind(prefix, 0) != 0) continue;
-      const long pid = std::atol(n.c_str() + prefix.size());  // still being written by a live process: leave it
-      if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) == 0) continue;
-      fs::remove_all(e.path(), ec);
-    }
-  }
-}
-
-void removeStaleStaging(const fs::path& outAbs, const std::vector<Case>& cases) {
-  for (const fs::path& dir : {outAbs, outAbs / ".work"}) removeStaleStagingIn(dir, cases);
-}
-
 /// OUT/logs/<case>.json: how a finished case ended and what produced it, read back by a rerun that skips the case.
-std::string recordPath(const BatchSettings& b, const Case& c) {
+std::string recordPath(const CohortSettings& b, const Case& c) {
   return fileInFolder((b.outAbs / "logs").string(), c.name + ".json");
 }
 
-void writeRecord(const BatchSettings& b, const Case& c) {
+void writeRecord(const CohortSettings& b, const Case& c) {
   Json j;
   j["status"] = c.status;
   j["exit_code"] = c.exitCode;
@@ -568,7 +249,7 @@ void writeRecord(const BatchSettings& b, const Case& c) {
 
 /// Restores the figures of an earlier run of the case from its record; returns that run's fingerprint ("" if there
 /// is no readable record).
-std::string readRecord(const BatchSettings& b, Case& c) {
+std::string readRecord(const CohortSettings& b, Case& c) {
   try {
     const Json j = readJsonFile(recordPath(b, c));
     c.exitCode = jsonInt(j.at("exit_code"));
@@ -583,7 +264,7 @@ std::string readRecord(const BatchSettings& b, Case& c) {
 /// A digest of what produces the case's result: the program's version, the scene and its templates (or the atlas,
 /// whose atlas.json holds its files' checksums), the options passed to `segment`, and the image. Empty if an input
 /// cannot be read (the case then runs and fails on its own). `scenes` caches the scenes' part.
-std::string fingerprintOf(const BatchSettings& b, const Case& c, std::map<std::string, std::string>& scenes) {
+std::string fingerprintOf(const CohortSettings& b, const Case& c, std::map<std::string, std::string>& scenes) {
   try {
     std::string text = std::string("mskseg ") + MSK_VERSION + "\n";
     if (!c.atlas.empty()) {
@@ -608,7 +289,7 @@ std::string fingerprintOf(const BatchSettings& b, const Case& c, std::map<std::s
 /// Whether case `c`, found finished, is left as it is: `done` (its record's fingerprint matches, or there is no record
 /// to compare), or `stale` with --keep-stale; false if it must run again (with --redo, or when what produces it has
 /// changed).
-bool keepFinished(const BatchSettings& b, Case& c, bool scored) {
+bool keepFinished(const CohortSettings& b, Case& c, bool scored) {
   if (b.redo || !fs::exists(c.reportPath)) return false;
   const std::string was = readRecord(b, c);
   if (!was.empty() && !c.fingerprint.empty() && was != c.fingerprint) {
@@ -632,7 +313,7 @@ bool keepFinished(const BatchSettings& b, Case& c, bool scored) {
 
 /// Records how a case's process ended (and its results if it succeeded; with --bids, after publishing them into the
 /// derivative's layout); returns the line to report.
-std::string caseEnded(const BatchSettings& b, Case& c, int status, const struct rusage& ru, const std::string& exe,
+std::string caseEnded(const CohortSettings& b, Case& c, int status, const struct rusage& ru, const std::string& exe,
                       bool scored) {
   c.peakRssMiB = static_cast<double>(ru.ru_maxrss) / 1024.0;
   c.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
@@ -666,7 +347,7 @@ std::string caseEnded(const BatchSettings& b, Case& c, int status, const struct 
 /// every case alike: the batch stops starting cases at the first one and throws it. SIGTERM, SIGINT or SIGHUP stop
 /// the batch: its running cases are ended (their outputs never appear half-written) and marked failed, the summary
 /// is written, and the signal's number is returned (0 when every case ran).
-int runCases(const BatchSettings& b, std::vector<Case>& cases, const std::vector<size_t>& todo, int& doneEarlier) {
+int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vector<size_t>& todo, int& doneEarlier) {
   std::error_code ec;
   const std::string exe = fs::read_symlink("/proc/self/exe", ec).string();
   if (ec) throw Error("batch: cannot find the mskseg program itself (/proc/self/exe)");
@@ -769,7 +450,7 @@ CaseCounts countCases(const std::vector<Case>& cases, int doneEarlier) {
 }
 
 /// OUT/batch.json: the command, version, inputs, counts and times.
-void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argvIn, const CaseCounts& n,
+void writeBatchJson(const CohortSettings& b, const std::vector<std::string>& argvIn, const CaseCounts& n,
                     std::time_t started, double wallSeconds) {
   Json counts;
   counts["ok"] = n.ok;
@@ -802,17 +483,17 @@ void writeBatchJson(const BatchSettings& b, const std::vector<std::string>& argv
 }  // namespace
 
 int cmdBatch(const std::vector<std::string>& argvIn) {
-  BatchSettings b;
+  CohortSettings b;
   if (!parseBatch(argvIn, b)) return 0;
   std::vector<Case> cases;
   const int runnable = findCases(b, cases);
-  removeStaleStaging(b.outAbs, cases);
   std::error_code ec;
   for (const fs::path& dir : {b.outAbs / "logs", b.outAbs / ".work"}) {
     if (dir.filename() == ".work" && !b.useBids) continue;
     fs::create_directories(dir, ec);
     if (ec) throw IoError(dir.string(), "cannot create folder: " + ec.message());
   }
+  removeStaleStaging(b.outAbs, cases);
   if (b.useBids) {
     std::string line = "mskseg batch";
     for (const std::string& a : argvIn) line += " " + a;

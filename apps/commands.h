@@ -33,6 +33,8 @@ int cmdAtlas(const std::vector<std::string>& args);
 int cmdSegment(const std::vector<std::string>& args);
 /// mskseg batch: one scene segmented in every case of a cohort folder, each case in a process of its own.
 int cmdBatch(const std::vector<std::string>& args);
+/// mskseg collect: the summary tables of a cohort whose cases separate `mskseg segment` runs segmented.
+int cmdCollect(const std::vector<std::string>& args);
 /// mskseg bench: benchmarks printing figures, one subcommand each.
 int cmdBench(const std::vector<std::string>& args);
 

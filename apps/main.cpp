@@ -35,6 +35,9 @@ const std::map<std::string, Command>& commands() {
       {"template", {msk::cli::cmdTemplate, "smooth template surface from a label map"}},
       {"batch",
        {msk::cli::cmdBatch, "segment every case of a cohort folder with one scene (resumable, summary table)"}},
+      {"collect",
+       {msk::cli::cmdCollect,
+        "summary tables of a cohort segmented case by case (the Snakemake workflow's last step)"}},
       {"bench", {msk::cli::cmdBench, "benchmarks that print figures (bench scene: 24-structure phantom timing)"}},
   };
   return table;

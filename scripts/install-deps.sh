@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Installs mskseg's build dependencies from Debian 12 packages (run as root).
+#   scripts/install-deps.sh            what building and testing mskseg needs
+#   scripts/install-deps.sh workflow   also Snakemake, SLURM and munge (the cohort workflow in workflow/ and its test)
 # Skips apt entirely when every package is already installed, so a second run is fast.
 set -euo pipefail
 
@@ -16,6 +18,9 @@ PACKAGES=(
   clang-format
   clang libclang-rt-14-dev   # the sanitizer build and the libFuzzer programs (scripts/sanitize.sh, scripts/fuzz.sh)
 )
+
+WORKFLOW_PACKAGES=(slurm-wlm munge snakemake)
+[ "${1:-}" = workflow ] && PACKAGES+=("${WORKFLOW_PACKAGES[@]}")
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -34,5 +39,20 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
+# Snakemake pulls in tens of thousands of Python files whose byte-compiling at install time takes most of a minute;
+# py3compile is diverted to /bin/true for the install (Python compiles what it imports, when it imports it).
+diverted=0
+if [[ " ${missing[*]} " == *" snakemake "* ]] && [ -x /usr/bin/py3compile ]; then
+  $SUDO dpkg-divert --local --rename --divert /usr/bin/py3compile.mskseg --add /usr/bin/py3compile >/dev/null
+  $SUDO ln -sf /bin/true /usr/bin/py3compile
+  diverted=1
+fi
+restore() {
+  if [ "$diverted" = 1 ]; then
+    $SUDO rm -f /usr/bin/py3compile
+    $SUDO dpkg-divert --local --rename --divert /usr/bin/py3compile.mskseg --remove /usr/bin/py3compile >/dev/null
+  fi
+}
+trap restore EXIT
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 echo "install-deps: done" >&2

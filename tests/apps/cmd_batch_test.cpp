@@ -7,6 +7,7 @@
 #include <chrono>
 #include <filesystem>
 #include <map>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -460,4 +461,114 @@ TEST(BatchCli, KilledBatchLeavesNoOrphanAndConcurrentBatchesShareTheCases) {
   EXPECT_TRUE(fs::exists(out + "/p01/report.json")) << rerun.err;
   for (const auto& e : fs::directory_iterator(out))
     EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
+}
+
+// `mskseg collect` gathers cases segmented one by one (as the Snakemake workflow's jobs do): the same case list as
+// batch (--list), a finished case ok and scored, a refused one failed with its error, one not run yet listed so.
+TEST(CollectCli, GathersCasesSegmentedOneByOne) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  sampleCase(cases + "/p01");
+  fs::create_directories(cases + "/p02");
+  const std::string image = msk::test::readBytes(kSample + "image.nii.gz");
+  msk::test::writeBytes(cases + "/p02/image.nii.gz", image.substr(0, image.size() / 3));
+  sampleCase(cases + "/p03");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur");
+  const std::vector<std::string> base = {"collect", "--cases", cases, "--scene", scene, "--out", out};
+
+  auto r = runCli({"collect", "--cases", cases, "--scene", scene, "--out", out, "--list"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const msk::Json listed = msk::parseJson(r.out);
+  ASSERT_EQ(listed.size(), 3u);
+  EXPECT_EQ(listed[1].at("case").get<std::string>(), "p02");
+  EXPECT_EQ(listed[1].at("scene").get<std::string>(), fs::absolute(scene).string());
+  EXPECT_EQ(listed[1].at("out").get<std::string>(), out + "/p02");
+
+  fs::create_directories(out + "/logs");
+  for (const std::string c : {"p01", "p02"}) {
+    r = runCli({"segment", "--image", cases + "/" + c + "/image.nii.gz", "--scene", scene, "--out", out + "/" + c,
+                "--quality", "fast", "--no-qc"});
+    msk::test::writeBytes(out + "/logs/" + c + ".log", r.err);
+    msk::test::writeBytes(out + "/logs/" + c + ".exit", std::to_string(r.exitCode) + "\n");
+  }
+  fs::create_directories(out + "/.p03.partial999999999");  // what a cancelled job left
+  r = runCli({"collect", "--cases", cases, "--scene", scene, "--out", out, "--reference", "labels.nii.gz"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 4u);
+  EXPECT_EQ(rows[1][1], "ok");
+  EXPECT_GT(std::stod(rows[1][10]), 0.95);
+  EXPECT_GT(std::stod(rows[1][4]), 0.0) << "seconds, from the case's report";
+  EXPECT_EQ(rows[2][1], "failed");
+  EXPECT_EQ(rows[2][3], "1");
+  EXPECT_NE(rows[2][12].find("truncated"), std::string::npos) << rows[2][12];
+  EXPECT_EQ(rows[3][1], "not-run");
+  EXPECT_EQ(csvRows(out + "/metrics.csv").size(), 2u);
+  EXPECT_FALSE(fs::exists(out + "/.p03.partial999999999"));
+}
+
+namespace {
+/// The results of a batch's output folder that must not depend on how the batch got there: per case the summary's
+/// result columns (quality, residual, volume change, overlap, scores) and the bytes of its label map and mesh.
+std::map<std::string, std::string> batchResults(const std::string& out) {
+  std::map<std::string, std::string> r;
+  const auto rows = csvRows(out + "/summary.csv");
+  for (size_t i = 1; i < rows.size(); ++i) {
+    std::string cols;
+    for (size_t k : {2u, 6u, 7u, 8u, 9u, 10u, 11u}) cols += rows[i][k] + ";";
+    r[rows[i][0] + " summary"] = cols;
+    for (const std::string f : {"labels.nii.gz", "femur.vtk"})
+      r[rows[i][0] + " " + f] = msk::test::readBytes(out + "/" + rows[i][0] + "/" + f);
+  }
+  return r;
+}
+}  // namespace
+
+// A batch, or one of its case processes, killed outright (SIGKILL) at a random moment: the rerun completes with the
+// results of an uninterrupted run and leaves nothing half-written. Several moments per run (seeded, reproducible).
+TEST(BatchCli, KilledAtRandomMomentsTheRerunGivesTheUninterruptedResults) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases");
+  sampleCase(cases + "/p01");
+  sampleCase(cases + "/p02");
+  const std::string scene = femurScene(dir.file("scene.json"), "femur");
+  auto args = [&](const std::string& out) {
+    return std::vector<std::string>{"batch", "--cases", cases,       "--scene", scene,     "--out",     out, "--jobs",
+                                    "2",     "--",      "--quality", "fast",    "--no-qc", "--threads", "1"};
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto clean = runCli(args(dir.file("clean")));
+  ASSERT_EQ(clean.exitCode, 0) << clean.err;
+  const double whole = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto expected = batchResults(dir.file("clean"));
+  ASSERT_EQ(expected.size(), 6u);
+
+  std::mt19937 random(20261126);
+  for (int trial = 0; trial < 4; ++trial) {
+    const bool killCase = trial % 2 == 1;  // the batch itself, or one of its case processes
+    const double at = std::uniform_real_distribution<double>(0.1, 0.9)(random) * whole;
+    SCOPED_TRACE("trial " + std::to_string(trial) + (killCase ? ": a case killed" : ": the batch killed") + " at " +
+                 std::to_string(at) + " s");
+    const std::string out = dir.file("run" + std::to_string(trial));
+    const msk::test::CliProcess batch =
+        msk::test::startCli(args(out), dir.file("stdout" + std::to_string(trial)), dir.file("stderr"));
+    std::this_thread::sleep_for(std::chrono::duration<double>(at));
+    int killed = 0;
+    if (killCase) {
+      for (int pid : msk::test::processesMentioning(out + "/p0"))
+        if (pid != batch.pid) killed += ::kill(pid, SIGKILL) == 0;
+    } else {
+      killed += ::kill(batch.pid, SIGKILL) == 0;
+    }
+    EXPECT_GT(killed, 0) << "nothing was running to be killed";
+    const int ended = msk::test::waitCli(batch, 60);
+    if (!killCase) EXPECT_EQ(ended, 128 + SIGKILL);
+    if (killCase) EXPECT_EQ(ended, 1) << "the killed case failed, the batch went on";
+    EXPECT_TRUE(waitForNoProcess(out + "/", 10).empty()) << "a case outlived its batch";
+    const auto rerun = runCli(args(out));
+    EXPECT_EQ(rerun.exitCode, 0) << rerun.err;
+    EXPECT_EQ(batchResults(out), expected) << "the rerun's results differ from an uninterrupted run's";
+    for (const auto& e : fs::recursive_directory_iterator(out))
+      EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
+  }
 }
