@@ -167,8 +167,11 @@ bool parseBatch(const std::vector<std::string>& argvIn, CohortSettings& b) {
       "interrupted: the batch was stopped while it ran, not-started: the batch was stopped first), quality (ok, "
       "doubtful or failed: the segmentation's status judged from the image alone, the report's \"status\"), exit "
       "code, seconds, peak memory, the checks that need no reference: largest mean image residual and volume change "
-      "of an object, voxels inside two objects; Dice; message), rewritten as each case ends; OUT/metrics.csv with "
-      "--reference; OUT/batch.json (the command, version, counts, times). Exit code 0 if every case ends ok, 1 if "
+      "of an object, voxels inside two objects; Dice; message), rewritten as each case ends; at the end "
+      "OUT/report.html "
+      "(the cohort's QC page: a row per case, sortable and filterable, volume outliers marked, thumbnails opening "
+      "each case's QC mosaic); OUT/metrics.csv with --reference; OUT/batch.json (the command, version, counts, times). "
+      "Exit code 0 if every case ends ok, 1 if "
       "any case failed (the others still run), 2 for a usage error. SIGTERM, SIGINT or SIGHUP end the running cases "
       "and remove what they had half-written, write the summary and exit 128 + the signal; the cases also end if the "
       "batch is killed outright (a rerun removes what they left). Several batches may share OUT, on one machine or "
@@ -385,6 +388,7 @@ int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vecto
         continue;
       }
       if (c.bids) fs::remove_all(c.out, ec);  // what a batch killed while publishing left
+      fs::remove(exitCodePath(b, c), ec);
       running[startCase(exe, c, b.forwarded)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
     }
     if (running.empty()) break;
@@ -409,6 +413,7 @@ int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vecto
       c.message = "stopped: the batch was asked to stop (signal " + std::to_string(stopSignal) + ")";
       line = c.name + " " + c.status + ": " + c.message;
     }
+    if (c.status != "interrupted") writeExitCode(b, c);
     if (c.exitCode == 2 && usageError.empty() && !stopping) usageError = c.name + ": " + c.message;
     say("[" + std::to_string(++finished) + "/" + std::to_string(todo.size()) + "] " + line);
     writeSummary(b.outAbs.string(), cases, scored);
@@ -528,6 +533,7 @@ int cmdBatch(const std::vector<std::string>& argvIn) {
   fs::remove(b.outAbs / ".work", ec);  // only if it is empty
   const CaseCounts n = countCases(cases, doneEarlier);
   writeBatchJson(b, argvIn, n, started, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  writeCohortPage(b.outAbs.string(), cases, b.casesDir);
   if (stoppedBy != 0) {
     std::cerr << "mskseg batch: stopped by signal " << stoppedBy << "; " << n.ok << " case(s) ok; a rerun goes on "
               << "from there -> " << b.outAbs.string() << "/summary.csv\n";

@@ -17,11 +17,6 @@ namespace fs = std::filesystem;
 namespace msk::cli {
 namespace {
 
-/// OUT/logs/<case>.exit: the exit code of the case's `mskseg segment`, written by the job that ran it.
-std::string exitCodePath(const CohortSettings& s, const Case& c) {
-  return fileInFolder((s.outAbs / "logs").string(), c.name + ".exit");
-}
-
 /// How case `c` ended, from what its job left in OUT: its report (ok), or its exit code and log (failed), or nothing
 /// (not run yet).
 void readCase(const CohortSettings& s, Case& c, bool scored) {
@@ -58,7 +53,8 @@ int cmdCollect(const std::vector<std::string>& argv) {
       "Gathers a cohort segmented case by case with `mskseg segment --out OUT/<case>` (each case's log "
       "in OUT/logs/<case>.log and the exit code of a failed run in OUT/logs/<case>.exit, as the Snakemake "
       "workflow in workflow/ writes them) into the tables `mskseg batch` writes: OUT/summary.csv (status "
-      "ok, failed, not-run, skipped) and, with --reference, OUT/metrics.csv. Removes what stopped runs "
+      "ok, failed, not-run, skipped), OUT/report.html (the cohort's QC page) and, with --reference, OUT/metrics.csv. "
+      "Removes what stopped runs "
       "left half-written. With --list, prints the cases (JSON) instead. Exit code 0 once the tables are written, "
       "whatever the cases' statuses.");
   app.add_option("--cases", s.casesDir, "the cohort folder")->required();
@@ -122,6 +118,7 @@ int cmdCollect(const std::vector<std::string>& argv) {
     skipped += c.status == "skipped";
   }
   writeSummary(s.outAbs.string(), cases, scored);
+  writeCohortPage(s.outAbs.string(), cases, s.casesDir);
   std::cout << "collect: " << ok << " ok, " << failed << " failed, " << notRun << " not run, " << skipped << " without "
             << s.imageName << " -> " << s.outAbs.string() << "/summary.csv\n";
   return 0;

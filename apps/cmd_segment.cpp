@@ -36,7 +36,7 @@ Json imageJson(const ImageF& image, const NiftiInfo& info) {
 /// Writes every output into `dir`: a mesh per object (and its tet mesh when valid), the label map, the QC pictures,
 /// and report.json (the run's report with the command, inputs and the files written).
 void writeOutputs(const std::string& dir, const SegmentationResult& res, const Scene& scene, const ImageF& image,
-                  const NiftiInfo& info, const SegmentOutputs& outputs, Json report) {
+                  const NiftiInfo& info, const SegmentOutputs& outputs, const LabelMap* qcReference, Json report) {
   std::vector<QcObject> qc;
   Json& objects = report["objects"];
   for (size_t i = 0; i < res.objects.size(); ++i) {
@@ -66,7 +66,11 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
   writeNifti(dir + "/labels.nii.gz", res.labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16, wo);
   if (outputs.qcPictures) {
     fs::create_directories(dir + "/qc");
-    writeQcPictures(dir + "/qc", image, res.labels, qc);
+    writeQcPictures(dir + "/qc", image, res.labels, qc, qcReference);
+    QcMosaicOptions mosaic;
+    const fs::path imageFile = fs::absolute(info.path).lexically_normal();  // "<its folder>/<its name>"
+    mosaic.title = (imageFile.parent_path().filename() / imageFile.filename()).string();
+    writeQcMosaic(dir + "/qc/mosaic.png", image, res.labels, qc, qcReference, mosaic);
   }
   writeJsonFile(dir + "/report.json", report);
 }
@@ -149,7 +153,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Writes into OUT: <name>.vtk per object (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object; "
       "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine), "
       "report.json (every parameter, version, timings, steps, volumes; with --atlas the placement: transforms, "
-      "registration stages and metrics, each object's move) and qc/<name>_{axial,coronal,sagittal}.png; with --atlas "
+      "registration stages and metrics, each object's move), qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png "
+      "(the whole case: four slices per view, every object's contour, a legend); with --atlas "
       "also placement.tfm, the global placement as a 3D Slicer transform.");
   if (!parseArgs(app, argv)) return 0;
   if (!sceneOpt->count() && !atlasOpt->count()) throw UsageError("give --scene or --atlas");
@@ -161,6 +166,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
   if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
+  std::optional<LabelMap> qcReference;
+  if (!outputs.qcReference.empty() && outputs.qcPictures) {
+    qcReference = readNifti<int32_t>(outputs.qcReference);  // drawn where it lies in world space, any grid
+  }
   Scene scene;
   std::optional<Placement> placement;
   if (atlasOpt->count()) {
@@ -195,7 +204,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   report["mesh_space"] = meshSpaceName(outputs.space);
   report.update(segmentReport(res, scene, opts));
   writeFolderAtomically(out, [&](const std::string& dir) {
-    writeOutputs(dir, res, scene, image, info, outputs, report);
+    writeOutputs(dir, res, scene, image, info, outputs, qcReference ? &*qcReference : nullptr, report);
     if (placement) writePlacementTransform(dir, *placement);
   });
   warnQuality(res);

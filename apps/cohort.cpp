@@ -114,6 +114,7 @@ void readResults(Case& c, bool scored) {
       residual = std::max(residual, o.at("mean_image_residual_mm").get<double>());
       const double v = o.at("volume_mm3").get<double>(), v0 = o.at("template_volume_mm3").get<double>();
       if (v0 > 0) change = std::max(change, 100.0 * std::abs(v / v0 - 1.0));
+      c.volumesMl.emplace_back(o.at("name").get<std::string>(), v / 1000.0);
     }
     c.worstResidualMm = residual;
     c.worstVolumeChangePct = change;
@@ -198,6 +199,8 @@ int findCases(const CohortSettings& b, std::vector<Case>& cases) {
       c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
       c.reportPath = bidsReportPath(b.outAbs.string(), bc);
       c.labelsPath = bidsLabelsPath(b.outAbs.string(), bc);
+      c.mosaicPath =
+          (b.outAbs / fs::path(bc.folder).parent_path() / "figures" / (bc.prefix + "_desc-mosaic_qc.png")).string();
       cases.push_back(c);
     }
     if (cases.empty())
@@ -226,6 +229,7 @@ int findCases(const CohortSettings& b, std::vector<Case>& cases) {
     c.log = (b.outAbs / "logs" / (c.name + ".log")).string();
     c.reportPath = c.out + "/report.json";
     c.labelsPath = c.out + "/labels.nii.gz";
+    c.mosaicPath = c.out + "/qc/mosaic.png";
     if (c.image.empty() && problem.rfind("no ", 0) == 0) {
       c.status = "skipped";
       c.message = problem;
@@ -247,6 +251,19 @@ int findCases(const CohortSettings& b, std::vector<Case>& cases) {
   if (runnable == 0 && std::none_of(cases.begin(), cases.end(), [](const Case& c) { return c.status == "failed"; }))
     throw IoError(b.casesDir, "no case: no subfolder holds " + b.imageName);
   return runnable;
+}
+
+std::string exitCodePath(const CohortSettings& s, const Case& c) {
+  return fileInFolder((s.outAbs / "logs").string(), c.name + ".exit");
+}
+
+void writeExitCode(const CohortSettings& s, const Case& c) {
+  const std::string path = exitCodePath(s, c);
+  writeAtomically(path, [&](const std::string& tmp) {
+    std::ofstream f(tmp);
+    f << c.exitCode << '\n';
+    if (!f.flush()) throw IoError(path, "cannot write");
+  });
 }
 
 Claim::Claim(const fs::path& logs, const std::string& caseName) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "batch_bids.h"
@@ -40,6 +41,8 @@ struct Case {
   double worstVolumeChangePct = std::nan("");  ///< largest |volume / template volume − 1| of an object, %
   double overlapVoxels = std::nan("");         ///< voxels inside two objects
   std::string quality;  ///< the report's status from the image alone: ok | doubtful | failed (empty: not read)
+  std::vector<std::pair<std::string, double>> volumesMl;  ///< each object's volume (mL), from the report
+  std::string mosaicPath;  ///< where the finished case's QC mosaic is (it may not exist: --no-qc)
 };
 
 /// What a batch (or collect) was asked to do.
@@ -78,9 +81,22 @@ void readResults(Case& c, bool scored);
 /// OUT/summary.csv and, with `scored`, OUT/metrics.csv (each written atomically).
 void writeSummary(const std::string& out, const std::vector<Case>& cases, bool scored);
 
+/// OUT/logs/<case>.exit: the exit code of the case's `mskseg segment` once it has ended (written by batch and by
+/// the workflow's jobs; read by collect).
+std::string exitCodePath(const CohortSettings& s, const Case& c);
+
+/// Writes c.exitCode to exitCodePath() (atomically).
+void writeExitCode(const CohortSettings& s, const Case& c);
+
 /// The cases: subfolders of s.casesDir holding the image, in name order (hidden folders and the output folder are not
 /// cases), or the images of the BIDS dataset. Returns how many can run.
 int findCases(const CohortSettings& s, std::vector<Case>& cases);
+
+/// OUT/report.html: one self-contained page (no network, thumbnails embedded) with a row per case (status, quality,
+/// seconds, each object's volume with outliers against the cohort marked, Dice and ASSD where scored, message) and a
+/// thumbnail opening the case's QC mosaic; sortable by any column and filterable by status (also from the address:
+/// report.html#sort=<column>&dir=asc|desc&status=<status>). Written atomically.
+void writeCohortPage(const std::string& out, const std::vector<Case>& cases, const std::string& title);
 
 /// A case claimed by one process: an exclusive lock (flock) on OUT/logs/.<case>.claim, held while the case runs, the
 /// file naming the host and process that hold it. Another batch on the same output folder (a rerun started meanwhile,

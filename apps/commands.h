@@ -41,7 +41,8 @@ int cmdBench(const std::vector<std::string>& args);
 /// How `mskseg segment` writes its results besides the segmentation options.
 struct SegmentOutputs {
   MeshSpace space = MeshSpace::LPS;  ///< space of the mesh files (tagged)
-  bool qcPictures = true;            ///< write qc/<name>_{axial,coronal,sagittal}.png
+  bool qcPictures = true;            ///< write qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png
+  std::string qcReference;           ///< a label map whose contours the QC pictures show as the reference (optional)
 };
 /// Binds the options of `mskseg segment` that steer the segmentation (all but --image, --scene and --out) into
 /// `opts` and `outputs`; their ranges are checked by checkSegmentOptions() after parsing.

@@ -17,6 +17,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   clang-format
   clang libclang-rt-14-dev   # the sanitizer build and the libFuzzer programs (scripts/sanitize.sh, scripts/fuzz.sh)
+  chromium                   # the test that loads the cohort QC page (report.html) in a real browser, headless
 )
 
 WORKFLOW_PACKAGES=(slurm-wlm munge snakemake)

@@ -2,6 +2,7 @@
 
 #include <openssl/evp.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -42,6 +43,14 @@ std::string sha256Text(const std::string& bytes) {
   const Digest ctx = startDigest("text");
   EVP_DigestUpdate(ctx.get(), bytes.data(), bytes.size());
   return finishDigest(ctx);
+}
+
+std::string base64(const std::string& bytes) {
+  std::string out(4 * ((bytes.size() + 2) / 3) + 1, '\0');
+  const int n = EVP_EncodeBlock(reinterpret_cast<unsigned char*>(out.data()),
+                                reinterpret_cast<const unsigned char*>(bytes.data()), static_cast<int>(bytes.size()));
+  out.resize(static_cast<size_t>(std::max(0, n)));
+  return out;
 }
 
 std::string sha256File(const std::string& path) {

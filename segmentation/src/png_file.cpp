@@ -1,7 +1,11 @@
 #include "msk/segmentation/png_file.h"
 
+#include <algorithm>
+#include <cmath>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <vector>
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -18,6 +22,24 @@ void writePngAtomically(const std::string& path, const cv::Mat& picture) {
     }
     if (!ok) throw IoError(path, "cannot write PNG");
   });
+}
+
+std::string thumbnailJpeg(const std::string& path, int width) {
+  cv::Mat picture;
+  try {
+    picture = cv::imread(path, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    throw IoError(path, std::string("cannot read picture: ") + e.what());
+  }
+  if (picture.empty()) throw IoError(path, "cannot read picture (missing or not an image)");
+  const int height =
+      std::max(1, static_cast<int>(std::lround(picture.rows * static_cast<double>(width) / picture.cols)));
+  cv::Mat small;
+  cv::resize(picture, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
+  std::vector<uchar> bytes;
+  if (!cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 85}))
+    throw IoError(path, "cannot encode thumbnail");
+  return std::string(bytes.begin(), bytes.end());
 }
 
 }  // namespace msk

@@ -1,14 +1,17 @@
 // OpenCV adapter behind msk/segmentation/qc_pictures.h: OpenCV types stay in this file.
 #include "msk/segmentation/qc_pictures.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <utility>
 
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
@@ -132,6 +135,62 @@ std::string safeFileName(const std::string& name) {
   return s;
 }
 
+/// Intensity window on the 1st–99th percentile of the finite voxels.
+std::pair<double, double> intensityWindow(const ImageF& image) {
+  const double lo = percentile(image, 1.0);
+  double hi = percentile(image, 99.0);
+  if (!(hi > lo)) hi = lo + 1.0;
+  return {lo, hi};
+}
+
+/// The image sampled on the plane, windowed to grey (black outside the image).
+cv::Mat greySlice(const ImageF& image, const Plane& p, const View& v, std::pair<double, double> window) {
+  cv::Mat pic(p.height, p.width, CV_8UC3, cv::Scalar(0, 0, 0));
+  const auto [lo, hi] = window;
+  for (int r = 0; r < p.height; ++r)
+    for (int c = 0; c < p.width; ++c) {
+      const std::optional<double> s = sampleTrilinear(image, p.at(c, r, v));
+      if (!s || !std::isfinite(*s)) continue;
+      const auto grey = static_cast<uint8_t>(std::lround(255.0 * std::clamp((*s - lo) / (hi - lo), 0.0, 1.0)));
+      pic.at<cv::Vec3b>(r, c) = cv::Vec3b(grey, grey, grey);
+    }
+  return pic;
+}
+
+/// Contours drawn dashed (3 px drawn, 3 px left out along each outline).
+void drawDashed(cv::Mat& pic, const std::vector<std::vector<cv::Point>>& contours, const cv::Scalar& colour) {
+  for (const auto& c : contours)
+    for (size_t i = 0; i < c.size(); ++i)
+      if ((i / 3) % 2 == 0) cv::line(pic, c[i], c[(i + 1) % c.size()], colour, 1, cv::LINE_8);
+}
+
+/// World box of the voxels carrying any of `objects`' labels in `labels` (grown into `box`); false if there are none.
+bool growLabelBox(const LabelMap& labels, const std::vector<QcObject>& objects, Eigen::Vector3d& lo,
+                  Eigen::Vector3d& hi) {
+  std::vector<bool> wanted;
+  for (const QcObject& o : objects) {
+    if (static_cast<size_t>(o.label) >= wanted.size()) wanted.resize(static_cast<size_t>(o.label) + 1, false);
+    wanted[static_cast<size_t>(o.label)] = true;
+  }
+  bool any = false;
+  const Grid& g = labels.grid;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const int l = labels.at(i, j, k);
+        if (l <= 0 || static_cast<size_t>(l) >= wanted.size() || !wanted[static_cast<size_t>(l)]) continue;
+        // The voxel's eight corners, so that a box of one voxel still has its size.
+        for (int corner = 0; corner < 8; ++corner) {
+          const Eigen::Vector3d w = g.toWorld(Eigen::Vector3d(
+              i + ((corner & 1) ? 0.5 : -0.5), j + ((corner & 2) ? 0.5 : -0.5), k + ((corner & 4) ? 0.5 : -0.5)));
+          lo = lo.cwiseMin(w);
+          hi = hi.cwiseMax(w);
+        }
+        any = true;
+      }
+  return any;
+}
+
 }  // namespace
 
 std::array<uint8_t, 3> qcObjectColour(size_t index) { return kPalette[index % kPalette.size()]; }
@@ -144,10 +203,7 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
     if (o.label < 1) throw ParameterError("label of " + o.name, std::to_string(o.label), "must be >= 1");
   if (objects.empty()) return {};
 
-  // Intensity window on the 1st–99th percentile of the finite voxels.
-  const double lo = percentile(image, 1.0);
-  double hi = percentile(image, 99.0);
-  if (!(hi > lo)) hi = lo + 1.0;
+  const auto [lo, hi] = intensityWindow(image);
   const auto bounds = image.grid.worldBounds();
   const Eigen::Vector3d imageCentre = 0.5 * (bounds[0] + bounds[1]);
 
@@ -158,14 +214,7 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
     if (!centre && reference) centre = labelCentroid(*reference, obj.label);
     for (const View& v : kViews) {
       const Plane p = makePlane(image.grid, v, centre.value_or(imageCentre));
-      cv::Mat pic(p.height, p.width, CV_8UC3, cv::Scalar(0, 0, 0));
-      for (int r = 0; r < p.height; ++r)
-        for (int c = 0; c < p.width; ++c) {
-          const std::optional<double> s = sampleTrilinear(image, p.at(c, r, v));
-          if (!s || !std::isfinite(*s)) continue;
-          const auto grey = static_cast<uint8_t>(std::lround(255.0 * std::clamp((*s - lo) / (hi - lo), 0.0, 1.0)));
-          pic.at<cv::Vec3b>(r, c) = cv::Vec3b(grey, grey, grey);
-        }
+      cv::Mat pic = greySlice(image, p, v, {lo, hi});
       // Others dimmed and thin, then the reference (white, thin), then the object on top.
       const cv::Mat slice = labelSlice(labels, p, v);
       for (size_t k = 0; k < objects.size(); ++k)
@@ -187,6 +236,94 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
     }
   }
   return written;
+}
+
+void writeQcMosaic(const std::string& path, const ImageF& image, const LabelMap& labels,
+                   const std::vector<QcObject>& objects, const LabelMap* reference, const QcMosaicOptions& options) {
+  if (options.slicesPerView < 1 || options.slicesPerView > 12)
+    throw ParameterError("slices per view", std::to_string(options.slicesPerView), "must be 1..12");
+  if (options.tileWidthPx < 256 || options.tileWidthPx > 2048)
+    throw ParameterError("tile width", std::to_string(options.tileWidthPx), "must be 256..2048 px");
+  const auto imageBounds = image.grid.worldBounds();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  bool any = growLabelBox(labels, objects, lo, hi);
+  if (reference) any = growLabelBox(*reference, objects, lo, hi) || any;
+  if (!any) {
+    lo = imageBounds[0];
+    hi = imageBounds[1];
+  }
+  const Eigen::Vector3d grow = 0.1 * (hi - lo);
+  lo = (lo - grow).cwiseMax(imageBounds[0]);
+  hi = (hi + grow).cwiseMin(imageBounds[1]);
+  const auto window = intensityWindow(image);
+
+  const int n = options.slicesPerView, tileW = options.tileWidthPx, gap = 4, caption = 22, header = 34;
+  struct Tile {
+    cv::Mat pic;
+    std::string caption;
+  };
+  std::vector<std::vector<Tile>> rows;
+  for (const View& v : kViews) {
+    const Eigen::Vector3d normal = v.right.cross(v.down);
+    int axis = 0;
+    normal.cwiseAbs().maxCoeff(&axis);
+    const double wMm = std::fabs(v.right.dot(hi - lo)), hMm = std::fabs(v.down.dot(hi - lo));
+    Plane p;
+    p.pix = std::max(wMm, 1e-6) / tileW;
+    p.width = tileW;
+    p.height = std::clamp(static_cast<int>(std::ceil(hMm / p.pix)), 16, 3 * tileW);
+    std::vector<Tile> row;
+    for (int s = 0; s < n; ++s) {
+      const double at = lo[axis] + (hi[axis] - lo[axis]) * (s + 1.0) / (n + 1.0);
+      for (int a = 0; a < 3; ++a) p.corner[a] = a == axis ? at : (v.right[a] + v.down[a]) < 0 ? hi[a] : lo[a];
+      cv::Mat pic = greySlice(image, p, v, window);
+      if (reference)
+        for (const QcObject& o : objects)
+          drawDashed(pic, contoursOf(labelSlice(*reference, p, v), o.label), cv::Scalar(255, 255, 255));
+      const cv::Mat slice = labelSlice(labels, p, v);
+      for (size_t k = 0; k < objects.size(); ++k)
+        cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(qcObjectColour(k)), 2, cv::LINE_8);
+      text(pic, v.leftLetter, cv::Point(4, p.height / 2 + 5));
+      text(pic, v.rightLetter, cv::Point(std::max(0, p.width - 14), p.height / 2 + 5));
+      text(pic, v.topLetter, cv::Point(p.width / 2 - 4, 18));
+      char where[96];
+      std::snprintf(where, sizeof where, "%s  %c = %.1f mm", v.name, "xyz"[axis], at);
+      row.push_back({pic, where});
+    }
+    rows.push_back(row);
+  }
+
+  int height = header;
+  for (const auto& row : rows) height += caption + row[0].pic.rows + gap;
+  const int width = n * tileW + (n - 1) * gap;
+  cv::Mat mosaic(height, width, CV_8UC3, cv::Scalar(24, 24, 24));
+  // Header: the title, then the legend (each object's colour and name; the reference's dashes).
+  int x = 8;
+  if (!options.title.empty()) {
+    text(mosaic, options.title, cv::Point(x, 22));
+    x += cv::getTextSize(options.title, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, nullptr).width + 24;
+  }
+  for (size_t k = 0; k < objects.size() && x < width - 40; ++k) {
+    cv::line(mosaic, cv::Point(x, 17), cv::Point(x + 18, 17), bgr(qcObjectColour(k)), 3, cv::LINE_8);
+    text(mosaic, objects[k].name, cv::Point(x + 24, 22));
+    x += 24 + cv::getTextSize(objects[k].name, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, nullptr).width + 18;
+  }
+  if (reference && x < width - 120) {
+    for (int d = 0; d < 18; d += 6)
+      cv::line(mosaic, cv::Point(x + d, 17), cv::Point(x + d + 3, 17), cv::Scalar(255, 255, 255), 1, cv::LINE_8);
+    text(mosaic, "reference", cv::Point(x + 24, 22));
+  }
+  int y = header;
+  for (const auto& row : rows) {
+    for (int s = 0; s < n; ++s) {
+      const int left = s * (tileW + gap);
+      text(mosaic, row[static_cast<size_t>(s)].caption, cv::Point(left + 6, y + 16));
+      row[static_cast<size_t>(s)].pic.copyTo(
+          mosaic(cv::Rect(left, y + caption, tileW, row[static_cast<size_t>(s)].pic.rows)));
+    }
+    y += caption + row[0].pic.rows + gap;
+  }
+  writePngAtomically(path, mosaic);
 }
 
 RgbPicture readRgbPicture(const std::string& path) {

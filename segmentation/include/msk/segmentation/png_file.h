@@ -12,4 +12,8 @@ namespace msk {
 /// failure throws IoError naming `path`.
 void writePngAtomically(const std::string& path, const cv::Mat& picture);
 
+/// The picture at `path` scaled to `width` px (aspect kept), encoded as JPEG bytes (quality 85) for embedding in a
+/// page. Throws IoError naming `path` if it cannot be read.
+std::string thumbnailJpeg(const std::string& path, int width);
+
 }  // namespace msk

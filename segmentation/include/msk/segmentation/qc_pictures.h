@@ -30,6 +30,23 @@ struct QcObject {
 std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& image, const LabelMap& labels,
                                          const std::vector<QcObject>& objects, const LabelMap* reference = nullptr);
 
+/// How a QC mosaic is laid out.
+struct QcMosaicOptions {
+  int slicesPerView = 4;  ///< slices in each row (axial, coronal, sagittal), spread over the objects' extent
+  int tileWidthPx = 512;  ///< width of each slice picture, px (>= 256)
+  std::string title;      ///< written in the header (e.g. the case's name)
+};
+
+/// Writes one picture of a whole case (atomically, PNG): a header with the title and a legend of the objects' names
+/// in their colours, then a row per view (axial, coronal, sagittal) of `slicesPerView` slices evenly spread over the
+/// box holding every object (grown by 10 %, within the image), each `tileWidthPx` wide with square pixels, radiological
+/// display as writeQcPictures(), a caption above it (view and slice position in mm, outside the slice, so it never
+/// covers the orientation letters), every object's contour in qcObjectColour(i) (2 px) and, with `reference`, the
+/// reference's contours dashed white. Throws IoError naming `path`.
+void writeQcMosaic(const std::string& path, const ImageF& image, const LabelMap& labels,
+                   const std::vector<QcObject>& objects, const LabelMap* reference = nullptr,
+                   const QcMosaicOptions& options = {});
+
 /// Contour colour of the i-th object (RGB, from a fixed palette of saturated colours that cycles).
 std::array<uint8_t, 3> qcObjectColour(size_t index);
 
