@@ -62,6 +62,7 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
   } else {
     args.insert(args.end(), {"--atlas", c.atlas});
   }
+  if (!c.reference.empty()) args.insert(args.end(), {"--qc-reference", c.reference});  // drawn in its QC pictures
   args.insert(args.end(), forwarded.begin(), forwarded.end());
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());

@@ -67,9 +67,11 @@ int cmdCollect(const std::vector<std::string>& argv) {
   app.add_option("--reference", s.referenceName,
                  "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
                  "HD95 against it (OUT/metrics.csv)");
-  app.add_flag("--list", list,
-               "print the cases that can run as a JSON array of {case, image, scene or atlas, out, log} and write "
-               "nothing");
+  app.add_flag(
+      "--list", list,
+      "print the cases that can run as a JSON array of {case, image, scene or atlas, reference if any, out, log} "
+      "and write "
+      "nothing");
   if (!parseArgs(app, argv)) return 0;
   checkCasePattern("--image", s.imageName);
   if (!s.referenceName.empty()) checkCasePattern("--reference", s.referenceName);
@@ -97,6 +99,7 @@ int cmdCollect(const std::vector<std::string>& argv) {
         j["scene"] = c.scene;
       else
         j["atlas"] = c.atlas;
+      if (!c.reference.empty()) j["reference"] = c.reference;
       j["out"] = c.out;
       j["log"] = c.log;
       out.push_back(j);
