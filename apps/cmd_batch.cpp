@@ -419,6 +419,17 @@ int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vecto
     say("[" + std::to_string(++finished) + "/" + std::to_string(todo.size()) + "] " + line);
     writeSummary(b.outAbs.string(), cases, scored);
   }
+  // Cases another batch was running when this one reached them: those it has finished since count as done here, so
+  // that whichever batch ends last leaves a summary of the whole cohort.
+  for (const size_t i : todo) {
+    Case& c = cases[i];
+    if (c.status != "elsewhere" || !fs::exists(c.reportPath)) continue;
+    const Claim claim(b.outAbs / "logs", c.name);
+    if (!claim.held()) continue;  // still being written
+    c.message.clear();
+    if (keepFinished(b, c, scored)) ++doneEarlier;
+  }
+  writeSummary(b.outAbs.string(), cases, scored);
   if (stopping) {
     for (size_t k = next; k < todo.size(); ++k) {
       Case& c = cases[todo[k]];

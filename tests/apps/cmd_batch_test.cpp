@@ -572,3 +572,37 @@ TEST(BatchCli, KilledAtRandomMomentsTheRerunGivesTheUninterruptedResults) {
       EXPECT_EQ(e.path().filename().string().find(".partial"), std::string::npos) << e.path();
   }
 }
+
+// Two batches started together on one output folder of six cases: each case runs exactly once (in one batch or the
+// other), and the summary the later one leaves covers the whole cohort.
+TEST(BatchCli, TwoConcurrentBatchesRunEachCaseOnce) {
+  msk::test::ScratchDir dir;
+  const std::string cases = dir.file("cases"), out = dir.file("out");
+  const std::vector<std::string> names = {"p01", "p02", "p03", "p04", "p05", "p06"};
+  for (const std::string& n : names) sampleCase(cases + "/" + n);
+  const std::vector<std::string> args = {
+      "batch",   "--cases",   cases, "--scene",   femurScene(dir.file("scene.json"), "femur"),
+      "--out",   out,         "--",  "--quality", "fast",
+      "--no-qc", "--threads", "1"};
+  const msk::test::CliProcess a = msk::test::startCli(args, dir.file("a.out"), dir.file("a.err"));
+  const msk::test::CliProcess b = msk::test::startCli(args, dir.file("b.out"), dir.file("b.err"));
+  ASSERT_EQ(msk::test::waitCli(a, 300), 0) << msk::test::readBytes(a.errFile);
+  ASSERT_EQ(msk::test::waitCli(b, 300), 0) << msk::test::readBytes(b.errFile);
+  const std::string saidA = msk::test::readBytes(a.errFile), saidB = msk::test::readBytes(b.errFile);
+  EXPECT_NE(saidA.find(" ok in"), std::string::npos) << "the first batch ran no case:\n" << saidA;
+  EXPECT_NE(saidB.find(" ok in"), std::string::npos) << "the second batch ran no case:\n" << saidB;
+  const std::string said = saidA + saidB;
+  for (const std::string& n : names) {
+    size_t runs = 0;
+    for (size_t at = said.find("] " + n + " ok in"); at != std::string::npos;
+         at = said.find("] " + n + " ok in", at + 1))
+      ++runs;
+    EXPECT_EQ(runs, 1u) << n << " ran " << runs << " times:\n" << said;
+  }
+  const auto rows = csvRows(out + "/summary.csv");
+  ASSERT_EQ(rows.size(), 7u);
+  for (size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_TRUE(rows[i][1] == "ok" || rows[i][1] == "done") << rows[i][0] << ": " << rows[i][1];
+    EXPECT_FALSE(rows[i][6].empty()) << rows[i][0] << " has its results in the summary";
+  }
+}
