@@ -94,5 +94,6 @@ TEST(CohortPage, SortsFiltersAndMarksOutliersInABrowser) {
 
   const auto failedOnly = rows(renderedDom(page + "#status=failed&sort=seconds", dir.file("chromium")));
   ASSERT_EQ(failedOnly.size(), 6u);
-  for (const auto& [name, hidden] : failedOnly) EXPECT_EQ(hidden, name != "p06") << name << " (only failed cases shown)";
+  for (const auto& [name, hidden] : failedOnly)
+    EXPECT_EQ(hidden, name != "p06") << name << " (only failed cases shown)";
 }
