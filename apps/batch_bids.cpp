@@ -153,7 +153,6 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
   const Json report = readJsonFile((from / "report.json").string());
   // Object name -> BIDS label value; two names with one value would overwrite each other's files.
   std::map<std::string, std::string> labelOf, nameOfLabel;
-  std::vector<std::pair<int, std::string>> table;
   for (const Json& o : report.at("objects")) {
     const std::string name = o.at("name").get<std::string>(), label = bidsLabel(name);
     if (label.empty()) throw Error("object \"" + name + "\": its name has no letter or digit for a BIDS label");
@@ -162,7 +161,6 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
                   "\" (rename one in the scene)");
     labelOf[name] = label;
     nameOfLabel[label] = name;
-    table.emplace_back(o.at("label").get<int>(), name);
   }
   const fs::path anat = fs::path(outRoot) / c.folder, figures = anat.parent_path() / "figures";
   std::error_code ec;
@@ -178,6 +176,17 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
   const std::string p = c.prefix + "_";
   for (const auto& e : fs::directory_iterator(from)) {
     const std::string n = e.path().filename().string();
+    if (e.is_directory() && n == "labels") {
+      // labels/<object>.nii.gz (--split) -> <prefix>_label-<object>_desc-mskseg_mask.nii.gz
+      for (const auto& m : fs::directory_iterator(e.path())) {
+        const std::string mn = m.path().filename().string();
+        const std::string object = mn.size() > 7 ? mn.substr(0, mn.size() - 7) : mn;
+        if (!labelOf.count(object) || mn.compare(mn.size() - 7, 7, ".nii.gz") != 0)
+          throw Error("unexpected file " + m.path().string() + " in a case's output");
+        moveFile(m.path(), anat / (p + "label-" + labelOf[object] + "_desc-mskseg_mask.nii.gz"));
+      }
+      continue;
+    }
     if (e.is_directory()) {
       if (n != "qc") throw Error("unexpected folder " + e.path().string() + " in a case's output");
       for (const auto& q : fs::directory_iterator(e.path())) {
@@ -197,6 +206,14 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
     std::string target;
     if (n == "labels.nii.gz")
       target = p + "desc-mskseg_dseg.nii.gz";
+    else if (n == "labels.tsv")
+      target = p + "desc-mskseg_dseg.tsv";
+    else if (n == "labels.ctbl")
+      target = p + "desc-mskseg_dseg.ctbl";
+    else if (n == "labels.itksnap.txt")
+      target = p + "desc-mskseg_dseg.itksnap.txt";
+    else if (n == "statistics.json" || n == "statistics.csv")
+      target = p + "desc-mskseg_statistics" + ext;
     else if (n == "placement.tfm")
       target = p + "from-atlas_to-" + suffix + "_mode-image_xfm.tfm";
     else if (labelOf.count(stem))
@@ -205,15 +222,6 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
       target = p + "desc-mskseg" + bidsLabel(stem) + "_" + bidsLabel(ext) + ext;
     moveFile(e.path(), anat / target);
   }
-
-  std::sort(table.begin(), table.end());
-  const std::string tsv = (anat / (p + "desc-mskseg_dseg.tsv")).string();
-  writeAtomically(tsv, [&](const std::string& tmp) {
-    std::ofstream f(tmp);
-    f << "index\tname\n";
-    for (const auto& [label, name] : table) f << label << '\t' << name << '\n';
-    if (!f.flush()) throw IoError(tsv, "cannot write");
-  });
 
   Json sidecar;
   sidecar["Sources"] = Json::array({"bids:raw:" + c.rawPath});

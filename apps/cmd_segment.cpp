@@ -1,5 +1,6 @@
 // mskseg segment: the scene's templates evolved into the image; meshes, label map, report and QC pictures.
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -12,6 +13,7 @@
 #include "msk/imaging/tet_mesh_io.h"
 #include "msk/imaging/transform_io.h"
 #include "msk/segmentation/atlas.h"
+#include "msk/segmentation/label_tables.h"
 #include "msk/segmentation/qc_pictures.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_report.h"
@@ -38,6 +40,7 @@ Json imageJson(const ImageF& image, const NiftiInfo& info) {
 void writeOutputs(const std::string& dir, const SegmentationResult& res, const Scene& scene, const ImageF& image,
                   const NiftiInfo& info, const SegmentOutputs& outputs, const LabelMap* qcReference, Json report) {
   std::vector<QcObject> qc;
+  const std::vector<LabelEntry> table = labelEntries(scene);
   Json& objects = report["objects"];
   for (size_t i = 0; i < res.objects.size(); ++i) {
     const ObjectResult& o = res.objects[i];
@@ -56,7 +59,7 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
                   std::to_string(o.volumeMesh.tetCount()) + " tets of the volume model are inverted");
       }
     }
-    qc.push_back({o.name, o.label});
+    qc.push_back({o.name, o.label, i < table.size() ? std::optional(table[i].rgb) : std::nullopt});
   }
   NiftiWriteOptions wo;
   wo.like = &info;
@@ -64,6 +67,24 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
   int maxLabel = 0;
   for (const auto& o : scene.objects) maxLabel = std::max(maxLabel, o.label);
   writeNifti(dir + "/labels.nii.gz", res.labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16, wo);
+  writeLabelTables(dir, table);
+  if (outputs.split) {  // one mask per structure, named after it
+    fs::create_directories(dir + "/labels");
+    for (const ObjectResult& o : res.objects) {
+      LabelMap mask = res.labels;
+      for (int32_t& v : mask.data) v = v == o.label ? 1 : 0;
+      NiftiWriteOptions mo = wo;
+      mo.description = "mskseg segment: " + o.name;
+      writeNifti(fileInFolder(dir + "/labels", o.name + ".nii.gz"), mask, DataType::UInt8, mo);
+    }
+  }
+  const Json statistics = structureStatistics(image, res);
+  writeJsonFile(dir + "/statistics.json", statistics);
+  writeAtomically(dir + "/statistics.csv", [&](const std::string& tmp) {
+    std::ofstream f(tmp);
+    f << statisticsCsv(statistics);
+    if (!f.flush()) throw IoError(dir + "/statistics.csv", "cannot write");
+  });
   if (outputs.qcPictures) {
     fs::create_directories(dir + "/qc");
     writeQcPictures(dir + "/qc", image, res.labels, qc, qcReference);
@@ -153,7 +174,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Writes into OUT: <name>.vtk per object (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object; "
       "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine), "
       "report.json (every parameter, version, timings, steps, volumes; with --atlas the placement: transforms, "
-      "registration stages and metrics, each object's move), qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png "
+      "registration stages and metrics, each object's move), labels.ctbl, labels.itksnap.txt and labels.tsv (names and "
+      "colours of the labels for 3D Slicer, ITK-SNAP and BIDS), statistics.json and .csv (per structure: volumes from "
+      "labels and mesh, surface area, image mean/median/sd inside, bounding box, centroid), with --split "
+      "labels/<name>.nii.gz, qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png "
       "(the whole case: four slices per view, every object's contour, a legend); with --atlas "
       "also placement.tfm, the global placement as a 3D Slicer transform.");
   if (!parseArgs(app, argv)) return 0;

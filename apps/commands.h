@@ -43,6 +43,7 @@ struct SegmentOutputs {
   MeshSpace space = MeshSpace::LPS;  ///< space of the mesh files (tagged)
   bool qcPictures = true;            ///< write qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png
   std::string qcReference;           ///< a label map whose contours the QC pictures show as the reference (optional)
+  bool split = false;                ///< also one mask per structure, labels/<name>.nii.gz
 };
 /// Binds the options of `mskseg segment` that steer the segmentation (all but --image, --scene and --out) into
 /// `opts` and `outputs`; their ranges are checked by checkSegmentOptions() after parsing.

@@ -107,6 +107,7 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   addMeshSpace(app, out.space, "space of the mesh files: lps (default) or ras; tagged either way");
   app.add_flag_function(
       "--no-qc", [&out](std::int64_t) { out.qcPictures = false; }, "no QC pictures");
+  app.add_flag("--split", out.split, "also one mask per structure: labels/<name>.nii.gz (1 inside, 0 outside)");
   app.add_option("--qc-reference", out.qcReference,
                  "a label map on the image's grid (e.g. a manual segmentation) drawn dashed in the QC pictures");
 }

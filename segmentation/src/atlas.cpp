@@ -124,6 +124,8 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     obj.templ = templateFromLabels(labels, spec.label, opts.templates, &tr);
     obj.templatePath = fileInFolder(dir, "template_" + spec.name + ".vtk");
     obj.model = defaultModel(spec.kind);
+    const Json colour = objectColour(spec.kind, i);
+    obj.colour = std::array<int, 3>{colour[0].get<int>(), colour[1].get<int>(), colour[2].get<int>()};
     obj.model.imageForce = TargetMode::Profile;
     obj.hasForce = true;
     obj.force = TargetMode::Profile;

@@ -195,6 +195,13 @@ bool growLabelBox(const LabelMap& labels, const std::vector<QcObject>& objects, 
 
 std::array<uint8_t, 3> qcObjectColour(size_t index) { return kPalette[index % kPalette.size()]; }
 
+namespace {
+/// The contour colour of objects[k].
+std::array<uint8_t, 3> colourOf(const std::vector<QcObject>& objects, size_t k) {
+  return objects[k].colour.value_or(qcObjectColour(k));
+}
+}  // namespace
+
 std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& image, const LabelMap& labels,
                                          const std::vector<QcObject>& objects, const LabelMap* reference) {
   std::error_code ec;
@@ -219,11 +226,12 @@ std::vector<std::string> writeQcPictures(const std::string& dir, const ImageF& i
       const cv::Mat slice = labelSlice(labels, p, v);
       for (size_t k = 0; k < objects.size(); ++k)
         if (k != oi)
-          cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(qcObjectColour(k), 0.55), 1, cv::LINE_8);
+          cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(colourOf(objects, k), 0.55), 1,
+                           cv::LINE_8);
       if (reference)
         cv::drawContours(pic, contoursOf(labelSlice(*reference, p, v), obj.label), -1, cv::Scalar(255, 255, 255), 1,
                          cv::LINE_8);
-      cv::drawContours(pic, contoursOf(slice, obj.label), -1, bgr(qcObjectColour(oi)), 2, cv::LINE_8);
+      cv::drawContours(pic, contoursOf(slice, obj.label), -1, bgr(colourOf(objects, oi)), 2, cv::LINE_8);
 
       text(pic, obj.name + " " + v.name, cv::Point(6, 16));
       text(pic, v.leftLetter, cv::Point(4, p.height / 2 + 5));
@@ -282,7 +290,7 @@ void writeQcMosaic(const std::string& path, const ImageF& image, const LabelMap&
           drawDashed(pic, contoursOf(labelSlice(*reference, p, v), o.label), cv::Scalar(255, 255, 255));
       const cv::Mat slice = labelSlice(labels, p, v);
       for (size_t k = 0; k < objects.size(); ++k)
-        cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(qcObjectColour(k)), 2, cv::LINE_8);
+        cv::drawContours(pic, contoursOf(slice, objects[k].label), -1, bgr(colourOf(objects, k)), 2, cv::LINE_8);
       text(pic, v.leftLetter, cv::Point(4, p.height / 2 + 5));
       text(pic, v.rightLetter, cv::Point(std::max(0, p.width - 14), p.height / 2 + 5));
       text(pic, v.topLetter, cv::Point(p.width / 2 - 4, 18));
@@ -304,7 +312,7 @@ void writeQcMosaic(const std::string& path, const ImageF& image, const LabelMap&
     x += cv::getTextSize(options.title, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, nullptr).width + 24;
   }
   for (size_t k = 0; k < objects.size() && x < width - 40; ++k) {
-    cv::line(mosaic, cv::Point(x, 17), cv::Point(x + 18, 17), bgr(qcObjectColour(k)), 3, cv::LINE_8);
+    cv::line(mosaic, cv::Point(x, 17), cv::Point(x + 18, 17), bgr(colourOf(objects, k)), 3, cv::LINE_8);
     text(mosaic, objects[k].name, cv::Point(x + 24, 22));
     x += 24 + cv::getTextSize(objects[k].name, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, nullptr).width + 18;
   }

@@ -24,8 +24,8 @@ namespace msk {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"objects", "collisions", "description", "provenance"};
-const std::vector<std::string> kObjectKeys = {"name",     "label", "kind",  "template",
-                                              "polarity", "force", "model", "profiles_from"};
+const std::vector<std::string> kObjectKeys = {"name",  "label", "kind",          "template", "polarity",
+                                              "force", "model", "profiles_from", "colour"};
 const std::vector<std::string> kModelKeys = {"shape_memory", "internal_stiffness", "global_prior",    "image_force",
                                              "medial_axis",  "radial_stiffness",   "axis_spacing_mm", "axis_first",
                                              "volumetric",   "volume_stiffness",   "refine",          "remesh"};
@@ -302,6 +302,16 @@ SceneObject parseObject(const Checker& check, const Json& o, size_t i, const fs:
   byLabel[obj.label] = i;
 
   obj.kind = static_cast<ObjectKind>(check.choice(o, "kind", kinds, where, true));
+  if (const Json* colour = jsonMember(o, "colour")) {
+    bool ok = colour->is_array() && colour->size() == 3;
+    for (size_t c = 0; ok && c < 3; ++c) {
+      const Json& v = (*colour)[c];
+      ok = v.is_number() && v.get<double>() == std::floor(v.get<double>()) && v.get<double>() >= 0 &&
+           v.get<double>() <= 255;
+    }
+    if (!ok) check.fail(where, "\"colour\" must be [r, g, b] with integers 0..255, found " + shown(*colour));
+    obj.colour = std::array<int, 3>{jsonInt((*colour)[0]), jsonInt((*colour)[1]), jsonInt((*colour)[2])};
+  }
   const fs::path templ(*check.string(o, "template", where, true));
   obj.templatePath = (templ.is_absolute() ? templ : folder / templ).lexically_normal().string();
   if (const int p = check.choice(o, "polarity", polarities, where, false); p >= 0) {
@@ -611,6 +621,7 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
     j["name"] = o.name;
     j["label"] = o.label;
     j["kind"] = objectKindName(o.kind);
+    if (o.colour) j["colour"] = Json::array({(*o.colour)[0], (*o.colour)[1], (*o.colour)[2]});
     j["template"] = pathFrom(folder, o.templatePath);
     if (o.hasPolarity) j["polarity"] = polarityName(o.polarity);
     if (o.hasForce) j["force"] = kForces[static_cast<size_t>(o.force)];

@@ -327,11 +327,12 @@ TEST(BatchCli, BidsDatasetBecomesADerivative) {
   }
   ASSERT_EQ(kinds.size(), 4u);
   for (const auto& [key, files] : kinds) {
-    for (const std::string want : {"dseg.nii.gz", "dseg.tsv", "dseg.json", "femurleft:mesh.vtk", "femurleft:qc.png"})
+    for (const std::string want : {"dseg.nii.gz", "dseg.tsv", "dseg.json", "dseg.ctbl", "statistics.json",
+                                   "femurleft:mesh.vtk", "femurleft:qc.png", "qc.png"})
       EXPECT_TRUE(files.count(want)) << key << " has no " << want;
   }
   const std::string anat = out + "/sub-02/ses-2/anat/sub-02_ses-2_";
-  EXPECT_EQ(msk::test::readBytes(anat + "desc-mskseg_dseg.tsv"), "index\tname\n1\tfemur_left\n");
+  EXPECT_EQ(msk::test::readBytes(anat + "desc-mskseg_dseg.tsv"), "index\tname\tcolor\n1\tfemur_left\t#ff2828\n");
   const msk::Json sidecar = msk::readJsonFile(anat + "desc-mskseg_dseg.json");
   EXPECT_EQ(sidecar.at("Sources")[0].get<std::string>(), "bids:raw:sub-02/ses-2/anat/sub-02_ses-2_T1w.nii.gz");
   EXPECT_EQ(sidecar.at("objects")[0].at("name").get<std::string>(), "femur_left");

@@ -319,3 +319,42 @@ TEST(SegmentCli, AbsurdWorkIsRefusedWithTheEstimate) {
   msk::test::expectOneLineError(r, 2, "--substeps", "hours");
   EXPECT_FALSE(fs::exists(dir.file("out")));
 }
+
+// Names and colours for the viewers (3D Slicer, ITK-SNAP, BIDS), per-structure statistics that agree with the label
+// map and the mesh, and --split's one mask per structure.
+TEST(SegmentCli, LabelTablesStatisticsAndSplitMasks) {
+  msk::test::ScratchDir dir;
+  const std::string out = dir.file("out");
+  const auto r =
+      runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", femurScene(dir, ", \"colour\": [10, 20, 30]"),
+              "--out", out, "--quality", "fast", "--no-qc", "--split"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const std::string slicer = msk::test::readBytes(out + "/labels.ctbl");
+  EXPECT_NE(slicer.find("\n1 femur 10 20 30 255\n"), std::string::npos) << slicer;
+  const std::string snap = msk::test::readBytes(out + "/labels.itksnap.txt");
+  EXPECT_NE(snap.find("ITK-SnAP Label Description File"), std::string::npos);
+  EXPECT_NE(snap.find("    1    10   20   30        1  1  1    \"femur\"\n"), std::string::npos) << snap;
+  EXPECT_EQ(msk::test::readBytes(out + "/labels.tsv"), "index\tname\tcolor\n1\tfemur\t#0a141e\n");
+
+  const msk::LabelMap labels = msk::readNifti<int32_t>(out + "/labels.nii.gz");
+  const long inside = std::count(labels.data.begin(), labels.data.end(), 1);
+  const msk::Json stats = msk::readJsonFile(out + "/statistics.json");
+  ASSERT_EQ(stats.size(), 1u);
+  const msk::Json& femur = stats[0];
+  EXPECT_EQ(femur.at("name").get<std::string>(), "femur");
+  EXPECT_EQ(femur.at("voxels").get<long>(), inside);
+  EXPECT_NEAR(femur.at("volume_labels_ml").get<double>(), inside * labels.grid.spacing.prod() / 1000.0, 1e-9);
+  EXPECT_NEAR(femur.at("volume_mesh_ml").get<double>() / femur.at("volume_labels_ml").get<double>(), 1.0, 0.03);
+  EXPECT_GT(femur.at("surface_area_mm2").get<double>(), 1000.0);
+  EXPECT_GT(femur.at("intensity_sd").get<double>(), 0.0);
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LE(femur.at("bbox_min_ras_mm")[a].get<double>(), femur.at("centroid_ras_mm")[a].get<double>());
+    EXPECT_GE(femur.at("bbox_max_ras_mm")[a].get<double>(), femur.at("centroid_ras_mm")[a].get<double>());
+  }
+  EXPECT_NE(msk::test::readBytes(out + "/statistics.csv").find("\nfemur,1," + std::to_string(inside) + ","),
+            std::string::npos);
+
+  const msk::LabelMap mask = msk::readNifti<int32_t>(out + "/labels/femur.nii.gz");
+  ASSERT_EQ(mask.data.size(), labels.data.size());
+  for (size_t v = 0; v < mask.data.size(); ++v) ASSERT_EQ(mask.data[v], labels.data[v] == 1 ? 1 : 0) << v;
+}

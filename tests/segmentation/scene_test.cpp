@@ -204,7 +204,11 @@ TEST(Scene, EveryKindOfErrorNamesTheKeyAndTheObject) {
       // The example of scene.h: a misspelt key names the object and lists the known keys.
       {twoObjects(R"(, "lable": 3)"),
        {"objects[0] (femur): unknown key \"lable\" (known: name, label, kind, template, polarity, force, model, "
-        "profiles_from)"}},
+        "profiles_from, colour)"}},
+      {twoObjects(R"(, "colour": [255, 0])"),
+       {"objects[0] (femur): \"colour\" must be [r, g, b] with integers 0..255"}},
+      {twoObjects(R"(, "colour": [255, 0, 256])"), {"objects[0] (femur)", "found [255,0,256]"}},
+      {twoObjects(R"(, "colour": "red")"), {"objects[0] (femur)", "\"colour\" must be [r, g, b]"}},
       {R"({"objects": [{"label": 1, "kind": "bone", "template": "a.vtk"}]})", {"objects[0]: missing key \"name\""}},
       {R"({"objects": [{"name": 5, "label": 1, "kind": "bone", "template": "a.vtk"}]})",
        {"objects[0]", "\"name\" must be a string, found number 5"}},
@@ -724,6 +728,7 @@ TEST(Scene, WrittenSceneReadsBackTheSame) {
   const std::string path = f.scene(R"({"description": "every key", "provenance": {"generator": "test", "seed": 3},
     "objects": [
       {"name": "femur", "label": 1, "kind": "bone", "template": "a.vtk", "polarity": "dark-inside",
+       "colour": [241, 214, 145],
        "model": {"shape_memory": "smoothing", "internal_stiffness": 0.5, "global_prior": "affine", "refine": true,
                  "volumetric": true, "volume_stiffness": 0.3}},
       {"name": "quad", "label": 2, "kind": "muscle", "template": "b.vtk", "force": "profile",
@@ -740,11 +745,15 @@ TEST(Scene, WrittenSceneReadsBackTheSame) {
   msk::writeScene(a, f.dir().file("written.json"));
   const msk::Scene b = msk::loadScene(f.dir().file("written.json"));
   ASSERT_EQ(a.objects.size(), b.objects.size());
+  ASSERT_TRUE(a.objects[0].colour.has_value());
+  EXPECT_EQ(*a.objects[0].colour, (std::array<int, 3>{241, 214, 145}));
+  EXPECT_FALSE(a.objects[1].colour.has_value());
   for (size_t i = 0; i < a.objects.size(); ++i) {
     const msk::SceneObject &x = a.objects[i], &y = b.objects[i];
     EXPECT_EQ(x.name, y.name);
     EXPECT_EQ(x.label, y.label);
     EXPECT_EQ(x.kind, y.kind);
+    EXPECT_EQ(x.colour, y.colour);
     EXPECT_EQ(x.templatePath, y.templatePath);
     EXPECT_EQ(x.hasPolarity, y.hasPolarity);
     EXPECT_EQ(x.polarity, y.polarity);

@@ -2,6 +2,7 @@
 /// Quality-control pictures: three orthogonal slices through each object with its contour drawn (OpenCV PNG).
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@ namespace msk {
 struct QcObject {
   std::string name;  ///< used in file names: <dir>/<name>_axial.png, _coronal.png, _sagittal.png
   int label = 0;     ///< its value in the label map
+  std::optional<std::array<uint8_t, 3>> colour;  ///< its contour colour (unset: qcObjectColour() of its place)
 };
 
 /// Writes, for every object, axial, coronal and sagittal slices (world-aligned, square pixels, radiological
@@ -23,7 +25,8 @@ struct QcObject {
 /// Details: pictures are sampled on a world-aligned plane (trilinear image, nearest labels) with square pixels of
 /// the smallest voxel spacing, resampled so the longer side has 256–512 px; axial: patient right (+x) on screen
 /// left, anterior up; coronal: patient right on the left, superior up; sagittal: anterior on the left, superior up.
-/// Object i is drawn in qcObjectColour(i) (2 px), the others dimmed (1 px), the reference in white (1 px); a label
+/// Object i is drawn in its colour, else qcObjectColour(i) (2 px), the others dimmed (1 px), the reference in white (1
+/// px); a label
 /// "<name> <view>" and orientation letters are written in the corners. An object absent from `labels` is sliced
 /// through its reference centroid if it has one, else through the centre of the image. Characters of a name other
 /// than letters, digits, '-', '_' and '.' become '_' in file names.

@@ -1,6 +1,7 @@
 #pragma once
 /// Scenes: the objects to segment (name, label, kind, template, the constraints each gets) and their collision
 /// pairs (declared, or "auto" from template proximity), read from scene.json.
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -62,8 +63,11 @@ struct SceneObject {
   std::string name;                       ///< unique, non-empty
   int label = 0;                          ///< value in the output label map, 1..32767, unique
   ObjectKind kind = ObjectKind::Generic;  ///< bone | muscle | generic
-  std::string templatePath;               ///< resolved path of the template mesh
-  TriangleMesh templ;                     ///< the template, RAS mm (closed, loaded and checked)
+  /// Display colour (scene key "colour": [r, g, b], 0..255 each) for the label tables and QC pictures; unset: the
+  /// QC palette's colour of the object's place in the scene (objectColour()).
+  std::optional<std::array<int, 3>> colour;
+  std::string templatePath;  ///< resolved path of the template mesh
+  TriangleMesh templ;        ///< the template, RAS mm (closed, loaded and checked)
   /// Optional per-object overrides (scene keys "polarity": "auto|dark-inside|bright-inside",
   /// "force": "gradient|profile", or its synonym "image_force" in "model"); unset keys keep the kind's defaults.
   bool hasPolarity = false;
