@@ -1,8 +1,11 @@
 // mskseg eval: overlap and surface-distance metrics between label maps or between meshes.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -12,6 +15,8 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/metrics.h"
+
+namespace fs = std::filesystem;
 
 namespace msk::cli {
 namespace {
@@ -52,19 +57,44 @@ Json metricsJson(const Row& r) {
   return j;
 }
 
+/// The label table mskseg writes beside its label map (labels.tsv: index, name, colour), label -> name; empty if the
+/// result has none.
+std::map<int32_t, std::string> labelNamesBeside(const std::string& labelMapPath) {
+  std::map<int32_t, std::string> names;
+  std::ifstream in((fs::path(labelMapPath).parent_path() / "labels.tsv").string());
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("index\tname", 0) != 0) return names;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string index, name;
+    if (std::getline(fields, index, '\t') && std::getline(fields, name, '\t') && !name.empty()) {
+      try {
+        names[std::stoi(index)] = name;
+      } catch (const std::exception&) {
+        return {};
+      }
+    }
+  }
+  return names;
+}
+
 }  // namespace
 
 int cmdEval(const std::vector<std::string>& argv) {
   CommandLine app(
       "eval",
-      "A and B are label maps on the same grid (.nii/.nii.gz; every label of B unless --labels) or two closed meshes "
+      "A and B are label maps on the same grid (.nii/.nii.gz) or two closed meshes "
       "(.vtk .vtp .stl .obj .ply). Prints Dice, Jaccard, average symmetric surface distance (ASSD), HD95 and "
-      "Hausdorff distance in mm (definitions in docs/measurements.md).");
+      "Hausdorff distance in mm (definitions in docs/measurements.md). Label maps: the labels named in the result's "
+      "label table (labels.tsv beside it, as mskseg writes it; rows named after its objects), else every label of the "
+      "reference, unless --labels.");
   std::string a, b, labelsText, jsonPath, csvPath;
   double voxel = 0.5;
   app.add_option("--result", a, "the segmentation (label map or mesh)")->required();
   app.add_option("--reference", b, "the reference (same kind)")->required();
-  app.add_option("--labels", labelsText, "labels to score, e.g. 1,2,3 (default: every label of the reference)");
+  app.add_option("--labels", labelsText,
+                 "labels to score, e.g. 1,2,3 (default: those of the result's labels.tsv, else every label of the "
+                 "reference)");
   app.add_option("--json", jsonPath, "write the figures as JSON ('-': stdout, instead of the table)");
   app.add_option("--csv", csvPath, "write the figures as CSV ('-': stdout, instead of the table)");
   addNumber(app, "--voxel", voxel, "grid spacing of the mesh overlap, mm, (0.05, 10] (default 0.5)");
@@ -81,8 +111,11 @@ int cmdEval(const std::vector<std::string>& argv) {
     if (!la.grid.sameGeometry(lb.grid))
       throw IoError(a, "label map is not on the reference's grid (" + b + "): resample it first");
     std::vector<int32_t> labels;
+    const std::map<int32_t, std::string> names = labelNamesBeside(a);
     if (!labelsText.empty()) {
       labels = parseLabels(labelsText);
+    } else if (!names.empty()) {
+      for (const auto& [label, name] : names) labels.push_back(label);
     } else {
       std::set<int32_t> s;
       for (int32_t v : lb.data)
@@ -90,14 +123,19 @@ int cmdEval(const std::vector<std::string>& argv) {
       labels.assign(s.begin(), s.end());
       if (labels.empty()) throw IoError(b, "reference has no labelled voxels");
     }
-    for (int32_t l : labels) rows.push_back({std::to_string(l), labelMetrics(la, l, lb, l)});
+    for (int32_t l : labels) {
+      const auto named = names.find(l);
+      rows.push_back({named != names.end() ? named->second : std::to_string(l), labelMetrics(la, l, lb, l)});
+    }
   }
   if (jsonPath != "-" && csvPath != "-") {  // stdout carries the table unless it carries JSON or CSV
-    std::printf("%-8s %8s %8s %9s %9s %10s %12s %12s\n", "object", "dice", "jaccard", "assd_mm", "hd95_mm", "hausd_mm",
-                "vol_res_mL", "vol_ref_mL");
+    size_t width = 8;
+    for (const auto& r : rows) width = std::max(width, r.name.size());
+    std::printf("%-*s %8s %8s %9s %9s %10s %12s %12s\n", static_cast<int>(width), "object", "dice", "jaccard",
+                "assd_mm", "hd95_mm", "hausd_mm", "vol_res_mL", "vol_ref_mL");
     for (const auto& r : rows)
-      std::printf("%-8s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", r.name.c_str(), r.m.dice, r.m.jaccard,
-                  r.m.assd, r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
+      std::printf("%-*s %8.4f %8.4f %9.3f %9.3f %10.3f %12.3f %12.3f\n", static_cast<int>(width), r.name.c_str(),
+                  r.m.dice, r.m.jaccard, r.m.assd, r.m.hd95, r.m.hausdorff, r.m.volumeA / 1000.0, r.m.volumeB / 1000.0);
   }
   if (!jsonPath.empty()) {
     Json j;

@@ -354,6 +354,13 @@ TEST(SegmentCli, LabelTablesStatisticsAndSplitMasks) {
   EXPECT_NE(msk::test::readBytes(out + "/statistics.csv").find("\nfemur,1," + std::to_string(inside) + ","),
             std::string::npos);
 
+  // eval scores the labels of the result's table, by name (not the reference's other three labels).
+  const auto scored =
+      runCli({"eval", "--result", out + "/labels.nii.gz", "--reference", kSample + "labels.nii.gz", "--csv", "-"});
+  ASSERT_EQ(scored.exitCode, 0) << scored.err;
+  EXPECT_EQ(msk::test::lineCount(scored.out), 2) << scored.out;
+  EXPECT_NE(scored.out.find("\nfemur,0.9"), std::string::npos) << scored.out;
+
   const msk::LabelMap mask = msk::readNifti<int32_t>(out + "/labels/femur.nii.gz");
   ASSERT_EQ(mask.data.size(), labels.data.size());
   for (size_t v = 0; v < mask.data.size(); ++v) ASSERT_EQ(mask.data[v], labels.data[v] == 1 ? 1 : 0) << v;
