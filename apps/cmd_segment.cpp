@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/log.h"
+#include "msk/imaging/image_export.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
@@ -68,6 +69,10 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
   for (const auto& o : scene.objects) maxLabel = std::max(maxLabel, o.label);
   writeNifti(dir + "/labels.nii.gz", res.labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16, wo);
   writeLabelTables(dir, table);
+  if (outputs.imageExport == "vti") {
+    writeVtkImage(dir + "/image.vti", image, outputs.space);
+    writeVtkImage(dir + "/labels.vti", res.labels, outputs.space);
+  }
   if (outputs.split) {  // one mask per structure, named after it
     fs::create_directories(dir + "/labels");
     for (const ObjectResult& o : res.objects) {
@@ -177,7 +182,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "registration stages and metrics, each object's move), labels.ctbl, labels.itksnap.txt and labels.tsv (names and "
       "colours of the labels for 3D Slicer, ITK-SNAP and BIDS), statistics.json and .csv (per structure: volumes from "
       "labels and mesh, surface area, image mean/median/sd inside, bounding box, centroid), with --split "
-      "labels/<name>.nii.gz, qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png "
+      "labels/<name>.nii.gz, with --image-export vti image.vti and labels.vti, qc/<name>_{axial,coronal,sagittal}.png "
+      "and qc/mosaic.png "
       "(the whole case: four slices per view, every object's contour, a legend); with --atlas "
       "also placement.tfm, the global placement as a 3D Slicer transform.");
   if (!parseArgs(app, argv)) return 0;

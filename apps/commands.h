@@ -44,6 +44,7 @@ struct SegmentOutputs {
   bool qcPictures = true;            ///< write qc/<name>_{axial,coronal,sagittal}.png and qc/mosaic.png
   std::string qcReference;           ///< a label map whose contours the QC pictures show as the reference (optional)
   bool split = false;                ///< also one mask per structure, labels/<name>.nii.gz
+  std::string imageExport;           ///< "vti": also image.vti and labels.vti with their world placement
 };
 /// Binds the options of `mskseg segment` that steer the segmentation (all but --image, --scene and --out) into
 /// `opts` and `outputs`; their ranges are checked by checkSegmentOptions() after parsing.

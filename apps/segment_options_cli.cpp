@@ -107,6 +107,10 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   addMeshSpace(app, out.space, "space of the mesh files: lps (default) or ras; tagged either way");
   app.add_flag_function(
       "--no-qc", [&out](std::int64_t) { out.qcPictures = false; }, "no QC pictures");
+  app.add_option("--image-export", out.imageExport,
+                 "vti: also image.vti and labels.vti, the image and the label map with their world placement in the "
+                 "meshes' space (--mesh-space), for VTK-based viewers such as ParaView")
+      ->check(CLI::IsMember({"vti"}));
   app.add_flag("--split", out.split, "also one mask per structure: labels/<name>.nii.gz (1 inside, 0 outside)");
   app.add_option("--qc-reference", out.qcReference,
                  "a label map on the image's grid (e.g. a manual segmentation) drawn dashed in the QC pictures");

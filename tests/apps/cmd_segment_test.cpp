@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "msk/core/volume_simplex.h"
+#include "msk/imaging/image_export.h"
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -364,4 +365,37 @@ TEST(SegmentCli, LabelTablesStatisticsAndSplitMasks) {
   const msk::LabelMap mask = msk::readNifti<int32_t>(out + "/labels/femur.nii.gz");
   ASSERT_EQ(mask.data.size(), labels.data.size());
   for (size_t v = 0; v < mask.data.size(); ++v) ASSERT_EQ(mask.data[v], labels.data[v] == 1 ? 1 : 0) << v;
+}
+
+// --image-export vti: the image and the label map as .vti in the meshes' space; read back, the femur's voxels and its
+// mesh occupy the same world box, and the image's grid is the NIfTI's.
+TEST(SegmentCli, ExportedImagesLieWhereTheMeshesAre) {
+  msk::test::ScratchDir dir;
+  const std::string out = dir.file("out");
+  const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", femurScene(dir), "--out", out,
+                         "--quality", "fast", "--no-qc", "--image-export", "vti"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const msk::ImageF image = msk::readVtkImage(out + "/image.vti");
+  const msk::ImageF nifti = msk::readNifti<float>(kSample + "image.nii.gz");
+  ASSERT_EQ(image.grid.dims, nifti.grid.dims);
+  EXPECT_LT((image.grid.origin - nifti.grid.origin).norm(), 1e-3);
+  EXPECT_TRUE(image.grid.direction.isApprox(nifti.grid.direction, 1e-6));
+
+  const msk::ImageF labels = msk::readVtkImage(out + "/labels.vti");
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  const msk::Grid& g = labels.grid;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (labels.at(i, j, k) == 1.0f) {
+          const Eigen::Vector3d w = g.toWorld(Eigen::Vector3d(i, j, k));
+          lo = lo.cwiseMin(w);
+          hi = hi.cwiseMax(w);
+        }
+  const msk::TriangleMesh mesh = msk::readMesh(out + "/femur.vtk");  // LPS on disk, RAS here
+  const Eigen::Vector3d meshLo = mesh.vertices.colwise().minCoeff(), meshHi = mesh.vertices.colwise().maxCoeff();
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_NEAR(lo[a], meshLo[a], g.spacing[a]) << "axis " << a;
+    EXPECT_NEAR(hi[a], meshHi[a], g.spacing[a]) << "axis " << a;
+  }
 }
