@@ -10,6 +10,7 @@
 #include <new>
 
 #include "msk/core/error.h"
+#include "msk/imaging/image_export.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/tet_mesh_io.h"
@@ -94,6 +95,11 @@ void tetMesh(const uint8_t* data, size_t size) {
   expectOnlyMskErrors("tet_vtu", [&] { (void)readTetMesh(path); });
 }
 
+void vtkImage(const uint8_t* data, size_t size) {
+  const std::string path = put("input.vti", data, size);
+  expectOnlyMskErrors("image_vti", [&] { (void)readVtkImage(path); });
+}
+
 /// scene.json beside the fixture template.vtk, which a scene may name.
 void scene(const uint8_t* data, size_t size) {
   const std::string path = put("scene.json", data, size);
@@ -118,8 +124,8 @@ void transform(const uint8_t* data, size_t size) {
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"nifti", nifti},         {"mesh_vtk", mesh<kVtk>}, {"mesh_vtp", mesh<kVtp>},
                                           {"mesh_stl", mesh<kStl>}, {"mesh_obj", mesh<kObj>}, {"mesh_ply", mesh<kPly>},
-                                          {"tet_vtu", tetMesh},     {"scene", scene},         {"atlas", atlas},
-                                          {"transform", transform}};
+                                          {"tet_vtu", tetMesh},     {"image_vti", vtkImage},  {"scene", scene},
+                                          {"atlas", atlas},         {"transform", transform}};
   return all;
 }
 
