@@ -15,6 +15,7 @@ command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 cmake -S "$here" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only -DNDEBUG" \
   -DMSK_SANITIZE=address,undefined -DMSK_BUILD_FUZZERS=ON -DMSK_BUILD_TESTS=ON -DMSK_BUILD_BENCHMARKS=OFF \
+  -DMSK_TEST_TIMEOUT=3600 \
   "${launcher[@]}" >/dev/null
 [ "$what" = configure ] && exit 0
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1:check_initialization_order=1}"
