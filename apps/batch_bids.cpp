@@ -212,6 +212,10 @@ void publishBidsCase(const std::string& work, const std::string& outRoot, const 
       target = p + "desc-mskseg_dseg.ctbl";
     else if (n == "labels.itksnap.txt")
       target = p + "desc-mskseg_dseg.itksnap.txt";
+    else if (n == "labels.vti")
+      target = p + "desc-mskseg_dseg.vti";
+    else if (n == "image.vti")
+      target = p + "desc-mskseg_" + suffix + ".vti";
     else if (n == "statistics.json" || n == "statistics.csv")
       target = p + "desc-mskseg_statistics" + ext;
     else if (n == "placement.tfm")
