@@ -24,6 +24,7 @@ namespace {
 struct Row {
   std::string name;
   SegmentationMetrics m;
+  int label = 0;  ///< the label scored (0: meshes)
 };
 
 std::vector<int32_t> parseLabels(const std::string& text) {
@@ -44,6 +45,7 @@ std::vector<int32_t> parseLabels(const std::string& text) {
 Json metricsJson(const Row& r) {
   Json j;
   j["object"] = r.name;
+  if (r.label != 0) j["label"] = r.label;
   auto num = [](double v) { return std::isfinite(v) ? Json(v) : Json(); };
   j["dice"] = num(r.m.dice);
   j["jaccard"] = num(r.m.jaccard);
@@ -125,7 +127,7 @@ int cmdEval(const std::vector<std::string>& argv) {
     }
     for (int32_t l : labels) {
       const auto named = names.find(l);
-      rows.push_back({named != names.end() ? named->second : std::to_string(l), labelMetrics(la, l, lb, l)});
+      rows.push_back({named != names.end() ? named->second : std::to_string(l), labelMetrics(la, l, lb, l), l});
     }
   }
   if (jsonPath != "-" && csvPath != "-") {  // stdout carries the table unless it carries JSON or CSV

@@ -23,13 +23,18 @@ TEST(CtExample, RunsFromTheCommandLineAlone) {
   const std::string log = msk::test::readBytes(dir.file("log.txt"));
   EXPECT_NE(log.find("== result"), std::string::npos) << log;  // the script's own table of the figures
   const struct {
-    const char* label;
+    int label;
+    const char* name;
     double guard;
-  } objects[] = {{"76", 0.90}, {"78", 0.93}, {"81", 0.87}, {"83", 0.85}};
+  } objects[] = {{76, "femur_right", 0.90},
+                 {78, "hip_right", 0.93},
+                 {81, "gluteus_maximus_right", 0.87},
+                 {83, "gluteus_medius_right", 0.85}};
   for (const auto& o : objects) {
     bool found = false;
     for (const msk::Json& m : metrics.at("metrics"))
-      if (m.at("object").get<std::string>() == o.label) {
+      if (m.at("label").get<int>() == o.label) {
+        EXPECT_EQ(m.at("object").get<std::string>(), o.name) << "named from the result's label table";
         found = true;
         EXPECT_GE(m.at("dice").get<double>(), o.guard) << "label " << o.label;
       }
