@@ -150,12 +150,7 @@ bool parseBatch(const std::vector<std::string>& argvIn, CohortSettings& b) {
                  "an atlas folder (mskseg atlas) placed in every case by registration, instead of a scene")
       ->excludes(sceneOpt);
   app.add_option("--out", b.out, "output folder")->required();
-  app.add_option("--image", b.imageName,
-                 "the image file in each case folder (default image.nii.gz), or a path inside it whose parts may be "
-                 "shell patterns, matching one file: '*_T1w.nii.gz', 'anat/*_T1w.nii.gz' (quoted)");
-  app.add_option("--reference", b.referenceName,
-                 "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
-                 "HD95 against it for the object's label (OUT/metrics.csv)");
+  addCaseFileOptions(app, b);
   app.add_option("--jobs", b.jobs, "cases run at once, 1..64 (default 1; each case's --threads come after --)");
   app.add_flag("--redo", b.redo, "run the cases already done again");
   app.add_flag("--keep-stale", b.keepStale,

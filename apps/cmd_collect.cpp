@@ -61,12 +61,7 @@ int cmdCollect(const std::vector<std::string>& argv) {
   CLI::Option* sceneOpt = app.add_option("--scene", s.scene, "the scene of every case without a scene.json of its own");
   app.add_option("--atlas", s.atlas, "an atlas folder, instead of a scene")->excludes(sceneOpt);
   app.add_option("--out", s.out, "the output folder of the cases")->required();
-  app.add_option("--image", s.imageName,
-                 "the image file in each case folder (default image.nii.gz), or a path inside it whose parts may be "
-                 "shell patterns, matching one file: '*_T1w.nii.gz', 'anat/*_T1w.nii.gz' (quoted)");
-  app.add_option("--reference", s.referenceName,
-                 "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
-                 "HD95 against it (OUT/metrics.csv)");
+  addCaseFileOptions(app, s);
   app.add_flag(
       "--list", list,
       "print the cases that can run as a JSON array of {case, image, scene or atlas, reference if any, out, log} "

@@ -29,6 +29,15 @@ std::string orEmpty(double v, int digits) { return std::isfinite(v) ? fixed(v, d
 
 }  // namespace
 
+void addCaseFileOptions(CLI::App& app, CohortSettings& s) {
+  app.add_option("--image", s.imageName,
+                 "the image file in each case folder (default image.nii.gz), or a path inside it whose parts may be "
+                 "shell patterns, matching one file: '*_T1w.nii.gz', 'anat/*_T1w.nii.gz' (quoted)");
+  app.add_option("--reference", s.referenceName,
+                 "a label map in each case folder (a name or a pattern, as --image): each object's Dice, ASSD and "
+                 "HD95 against it for the object's label (OUT/metrics.csv)");
+}
+
 std::string csvField(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;
   std::string q = "\"";

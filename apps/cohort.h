@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "batch_bids.h"
+#include "cli.h"
 
 namespace msk::cli {
 
@@ -55,6 +56,9 @@ struct CohortSettings {
   std::vector<std::string> forwarded;  ///< options after "--", for every case's `mskseg segment`
   std::filesystem::path outAbs;        ///< `out`, absolute
 };
+
+/// Adds --image and --reference (the case files, by name or pattern) to a command that reads a cohort folder.
+void addCaseFileOptions(CLI::App& app, CohortSettings& s);
 
 /// `s` as one CSV field (quoted if it holds a comma, a quote or a line break).
 std::string csvField(const std::string& s);

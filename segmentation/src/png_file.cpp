@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -24,7 +25,10 @@ void writePngAtomically(const std::string& path, const cv::Mat& picture) {
   });
 }
 
-std::string thumbnailJpeg(const std::string& path, int width) {
+cv::Mat readPicture(const std::string& path) {
+  // Checked first: OpenCV would print a warning of its own for a missing file.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "cannot read picture: no such file");
   cv::Mat picture;
   try {
     picture = cv::imread(path, cv::IMREAD_COLOR);
@@ -32,6 +36,11 @@ std::string thumbnailJpeg(const std::string& path, int width) {
     throw IoError(path, std::string("cannot read picture: ") + e.what());
   }
   if (picture.empty()) throw IoError(path, "cannot read picture (missing or not an image)");
+  return picture;
+}
+
+std::string thumbnailJpeg(const std::string& path, int width) {
+  const cv::Mat picture = readPicture(path);
   const int height =
       std::max(1, static_cast<int>(std::lround(picture.rows * static_cast<double>(width) / picture.cols)));
   cv::Mat small;

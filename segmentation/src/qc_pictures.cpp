@@ -335,16 +335,7 @@ void writeQcMosaic(const std::string& path, const ImageF& image, const LabelMap&
 }
 
 RgbPicture readRgbPicture(const std::string& path) {
-  // Checked first: OpenCV would print a warning of its own for a missing file.
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw IoError(path, "cannot read picture: no such file");
-  cv::Mat bgrImage;
-  try {
-    bgrImage = cv::imread(path, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    throw IoError(path, std::string("cannot read picture: ") + e.what());
-  }
-  if (bgrImage.empty()) throw IoError(path, "cannot read picture (missing or not an image)");
+  const cv::Mat bgrImage = readPicture(path);
   RgbPicture out;
   out.width = bgrImage.cols;
   out.height = bgrImage.rows;

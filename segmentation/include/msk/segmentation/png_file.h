@@ -12,6 +12,10 @@ namespace msk {
 /// failure throws IoError naming `path`.
 void writePngAtomically(const std::string& path, const cv::Mat& picture);
 
+/// Reads a picture (PNG or another format OpenCV reads) as 8-bit BGR. Throws IoError naming `path` if it is missing
+/// or cannot be decoded.
+cv::Mat readPicture(const std::string& path);
+
 /// The picture at `path` scaled to `width` px (aspect kept), encoded as JPEG bytes (quality 85) for embedding in a
 /// page. Throws IoError naming `path` if it cannot be read.
 std::string thumbnailJpeg(const std::string& path, int width);
