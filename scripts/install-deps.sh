@@ -18,6 +18,7 @@ PACKAGES=(
   clang-format
   clang libclang-rt-14-dev   # the sanitizer build and the libFuzzer programs (scripts/sanitize.sh, scripts/fuzz.sh)
   chromium                   # the test that loads the cohort QC page (report.html) in a real browser, headless
+  libxml2-utils              # xmllint: the test that validates the 3D Slicer module descriptions (mskseg segment --xml)
 )
 
 WORKFLOW_PACKAGES=(slurm-wlm munge snakemake)
