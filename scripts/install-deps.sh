@@ -2,7 +2,10 @@
 # Installs mskseg's build dependencies from Debian 12 packages (run as root).
 #   scripts/install-deps.sh            what building and testing mskseg needs
 #   scripts/install-deps.sh workflow   also Snakemake, SLURM and munge (the cohort workflow in workflow/ and its test)
-# Skips apt entirely when every package is already installed, so a second run is fast.
+#   scripts/install-deps.sh viewers    also ParaView (pvbatch, paraview.simple) and Xvfb (scripts/viewer-screenshot.sh)
+# Groups combine: scripts/install-deps.sh workflow viewers.
+# Skips apt entirely when every package is already installed, so a second run is fast. Never removes a package: an
+# install that would (a conflict) fails instead.
 set -euo pipefail
 
 PACKAGES=(
@@ -22,7 +25,47 @@ PACKAGES=(
 )
 
 WORKFLOW_PACKAGES=(slurm-wlm munge snakemake)
-[ "${1:-}" = workflow ] && PACKAGES+=("${WORKFLOW_PACKAGES[@]}")
+# ParaView's Python modules (paraview.simple, its own vtkmodules) are in python3-paraview, which Debian 12 declares in
+# conflict with python3-vtk9, a dependency of libvtk9-dev: both ship the Python package vtkmodules. So that mskseg's
+# build keeps libvtk9-dev, python3-paraview is unpacked (same version as paraview, not registered with dpkg) into
+# $PARAVIEW_PYTHON, which scripts/viewer-screenshot.sh puts first on pvbatch's PYTHONPATH. xvfb-run needs xauth.
+VIEWER_PACKAGES=(paraview xvfb xauth)
+PARAVIEW_PYTHON=/opt/mskseg/python3-paraview
+viewers=0
+for group in "$@"; do
+  case "$group" in
+    workflow) PACKAGES+=("${WORKFLOW_PACKAGES[@]}") ;;
+    viewers) PACKAGES+=("${VIEWER_PACKAGES[@]}"); viewers=1 ;;
+    *) echo "install-deps: unknown group '$group' (workflow, viewers)" >&2; exit 2 ;;
+  esac
+done
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+
+# Unpacks python3-paraview of paraview's installed version into $PARAVIEW_PYTHON (see VIEWER_PACKAGES), unless it is
+# there already or python3-paraview is installed.
+unpack_paraview_python() {
+  if dpkg-query -W -f='${Status}' python3-paraview 2>/dev/null | grep -q 'install ok installed'; then return; fi
+  local version
+  version="$(dpkg-query -W -f='${Version}' paraview)"
+  if [ "$(cat "$PARAVIEW_PYTHON/VERSION" 2>/dev/null)" = "$version" ]; then return; fi
+  echo "install-deps: unpacking python3-paraview $version into $PARAVIEW_PYTHON" >&2
+  local tmp
+  tmp="$(mktemp -d)"
+  chmod 755 "$tmp" && { chown _apt "$tmp" 2>/dev/null || true; }   # apt downloads as _apt where it may write
+  if ! (cd "$tmp" && $SUDO apt-get download -qq "python3-paraview=$version" 2>/dev/null); then
+    $SUDO apt-get update -qq
+    (cd "$tmp" && $SUDO apt-get download -qq "python3-paraview=$version")
+  fi
+  $SUDO rm -rf "$PARAVIEW_PYTHON.new"
+  $SUDO mkdir -p "$PARAVIEW_PYTHON.new"
+  $SUDO dpkg-deb -x "$tmp"/python3-paraview_*.deb "$PARAVIEW_PYTHON.new"
+  echo "$version" | $SUDO tee "$PARAVIEW_PYTHON.new/VERSION" >/dev/null
+  $SUDO rm -rf "$PARAVIEW_PYTHON" "$tmp"
+  $SUDO mv "$PARAVIEW_PYTHON.new" "$PARAVIEW_PYTHON"
+}
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -33,13 +76,11 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#PACKAGES[@]} packages already installed" >&2
+  if [ "$viewers" = 1 ]; then unpack_paraview_python; fi
   exit 0
 fi
 
 echo "install-deps: installing ${missing[*]}" >&2
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 # Snakemake pulls in tens of thousands of Python files whose byte-compiling at install time takes most of a minute;
 # py3compile is diverted to /bin/true for the install (Python compiles what it imports, when it imports it).
@@ -56,5 +97,6 @@ restore() {
   fi
 }
 trap restore EXIT
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+$SUDO apt-get install -y -qq --no-install-recommends --no-remove "${missing[@]}" >/dev/null
+if [ "$viewers" = 1 ]; then unpack_paraview_python; fi
 echo "install-deps: done" >&2
