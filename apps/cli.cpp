@@ -1,5 +1,6 @@
 #include "cli.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -59,8 +60,23 @@ CommandLine::CommandLine(const std::string& command, const std::string& descript
   this->formatter(formatter);
 }
 
+namespace {
+/// `arg` with the underscores of its option name turned into hyphens when the app has that option and not the
+/// underscored one ("--init_transform" -> "--init-transform"), the form of 3D Slicer's module flags.
+std::string hyphenated(const CLI::App& app, const std::string& arg) {
+  if (arg.rfind("--", 0) != 0) return arg;
+  const size_t eq = arg.find('=');
+  std::string name = arg.substr(0, eq);
+  if (name.find('_') == std::string::npos || app.get_option_no_throw(name) != nullptr) return arg;
+  std::replace(name.begin(), name.end(), '_', '-');
+  if (app.get_option_no_throw(name) == nullptr) return arg;
+  return eq == std::string::npos ? name : name + arg.substr(eq);
+}
+}  // namespace
+
 bool parseArgs(CLI::App& app, const std::vector<std::string>& args) {
-  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them last first
+  std::vector<std::string> reversed;  // CLI11 takes them last first
+  for (auto a = args.rbegin(); a != args.rend(); ++a) reversed.push_back(hyphenated(app, *a));
   try {
     app.parse(reversed);
   } catch (const CLI::CallForHelp&) {

@@ -25,6 +25,7 @@ class CommandLine : public CLI::App {
 
 /// Parses `args` (what follows the command name) into what `app` binds. Returns false if --help was asked (the help
 /// is then printed on stdout); throws UsageError naming the option for anything malformed.
+/// Options are also accepted with underscores for hyphens (--init_transform), the form 3D Slicer passes.
 bool parseArgs(CLI::App& app, const std::vector<std::string>& args);
 
 /// An option taking a finite number (NaN and infinities are refused) bound to `value`.

@@ -3,8 +3,63 @@
 
 #include "commands.h"
 #include "msk/segmentation/atlas.h"
+#include "slicer_module.h"
 
 namespace msk::cli {
+
+namespace {
+/// The module's parameters: the options 3D Slicer's panel shows for `mskseg atlas`.
+SlicerModule atlasModule() {
+  SlicerModule m;
+  m.title = "mskseg atlas";
+  m.description =
+      "Builds an atlas folder for mskseg segment from a subject's image and its label map: the reference image, a "
+      "template surface per structure and the scene.";
+  SlicerGroup io{"Input and output", "The reference subject and the atlas folder written.", false, {}};
+  SlicerParameter p;
+  p.tag = "image", p.option = "--image", p.label = "Reference volume", p.imageType = "scalar",
+  p.fileExtensions = ".nii.gz";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "image", p.option = "--labels", p.label = "Its label map", p.imageType = "label",
+  p.fileExtensions = ".nii.gz";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "string", p.option = "--objects", p.label = "Structures (NAME:LABEL:KIND,...)";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "directory", p.option = "--out", p.label = "Atlas folder to write", p.channel = "output";
+  io.parameters.push_back(p);
+  m.groups.push_back(io);
+  SlicerGroup build{"Atlas", "What the atlas keeps.", true, {}};
+  p = {};
+  p.tag = "string-enumeration", p.option = "--collisions", p.label = "Collision pairs", p.defaultValue = "auto",
+  p.elements = {"auto", "all", "none"};
+  build.parameters.push_back(p);
+  p = {};
+  p.tag = "string-enumeration", p.option = "--modality", p.label = "Modality", p.defaultValue = "auto",
+  p.elements = {"auto", "ct", "mr"};
+  build.parameters.push_back(p);
+  p = {};
+  p.tag = "double", p.option = "--margin", p.label = "Margin kept around the structures (mm)", p.defaultValue = "30",
+  p.hasRange = true, p.minimum = 0, p.maximum = 500, p.step = 1;
+  build.parameters.push_back(p);
+  p = {};
+  p.tag = "integer", p.option = "--vertices", p.label = "Vertices per template", p.defaultValue = "3000",
+  p.hasRange = true, p.minimum = 4, p.maximum = 100000, p.step = 100;
+  build.parameters.push_back(p);
+  p = {};
+  p.tag = "double", p.option = "--smooth", p.label = "Label blur (mm, 0: automatic)", p.defaultValue = "0",
+  p.hasRange = true, p.minimum = 0, p.maximum = 20, p.step = 0.1;
+  build.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--progress-tags", p.label = "Progress in Slicer", p.defaultValue = "true",
+  p.hidden = true;
+  build.parameters.push_back(p);
+  m.groups.push_back(build);
+  return m;
+}
+}  // namespace
 
 int cmdAtlas(const std::vector<std::string>& argv) {
   CommandLine app(
@@ -22,17 +77,20 @@ int cmdAtlas(const std::vector<std::string>& argv) {
   app.add_option("--collisions", collisions,
                  "auto (pairs whose templates come within 2 mm, default), all (every pair) or none")
       ->check(CLI::IsMember({"auto", "all", "none"}));
-  app.add_option("--modality", modality, "ct or mr (default: guessed from the intensities)")
-      ->check(CLI::IsMember({"ct", "mr"}));
+  app.add_option("--modality", modality, "ct, mr or auto (default: guessed from the intensities)")
+      ->check(CLI::IsMember({"ct", "mr", "auto"}));
   addNumber(app, "--margin", opts.marginMm, "margin around the objects kept of the image, mm (default 30)");
   addTemplateOptions(app, opts.templates);
-  app.add_option("--out", out, "the atlas folder to write (appears whole or not at all)")->required();
+  app.add_option("--out", out, "the atlas folder to write, created with its parents (appears whole or not at all)")
+      ->required();
+  addProgressTagsOption(app);
+  if (handleSlicerXml(app, argv, atlasModule())) return 0;
   if (!parseArgs(app, argv)) return 0;
   opts.objects = parseAtlasObjects(objects);
   opts.collisions = collisions == "all"    ? AtlasCollisions::All
                     : collisions == "none" ? AtlasCollisions::None
                                            : AtlasCollisions::Auto;
-  opts.modality = modality;
+  opts.modality = modality == "auto" ? "" : modality;
   checkTemplateOptions(opts.templates);
   checkOutputFolder(out);
   Json atlas;

@@ -2,6 +2,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <string>
 
@@ -19,6 +20,7 @@
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_report.h"
 #include "msk/segmentation/segmenter.h"
+#include "slicer_module.h"
 
 namespace fs = std::filesystem;
 
@@ -34,6 +36,23 @@ Json imageJson(const ImageF& image, const NiftiInfo& info) {
   img["affine_source"] = affineSourceName(info.affineSource);
   img["datatype"] = dataTypeName(info.datatype);
   return img;
+}
+
+bool isNiftiName(const std::string& path) {
+  const auto ends = [&](const std::string& e) {
+    return path.size() > e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
+  };
+  return ends(".nii.gz") || ends(".nii");
+}
+
+/// The label map on the input's grid and affine, 8-bit when every label fits.
+void writeLabelMap(const std::string& path, const LabelMap& labels, const Scene& scene, const NiftiInfo& info) {
+  NiftiWriteOptions wo;
+  wo.like = &info;
+  wo.description = "mskseg segment";
+  int maxLabel = 0;
+  for (const auto& o : scene.objects) maxLabel = std::max(maxLabel, o.label);
+  writeNifti(path, labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16, wo);
 }
 
 /// Writes every output into `dir`: a mesh per object (and its tet mesh when valid), the label map, the QC pictures,
@@ -62,12 +81,9 @@ void writeOutputs(const std::string& dir, const SegmentationResult& res, const S
     }
     qc.push_back({o.name, o.label, i < table.size() ? std::optional(table[i].rgb) : std::nullopt});
   }
+  writeLabelMap(dir + "/labels.nii.gz", res.labels, scene, info);
   NiftiWriteOptions wo;
   wo.like = &info;
-  wo.description = "mskseg segment";
-  int maxLabel = 0;
-  for (const auto& o : scene.objects) maxLabel = std::max(maxLabel, o.label);
-  writeNifti(dir + "/labels.nii.gz", res.labels, maxLabel <= 255 ? DataType::UInt8 : DataType::Int16, wo);
   writeLabelTables(dir, table);
   if (outputs.imageExport == "vti") {
     writeVtkImage(dir + "/image.vti", image, outputs.space);
@@ -142,6 +158,113 @@ void printSummary(const SegmentationResult& res, const Scene& scene, const std::
   }
 }
 
+/// Every object's surface in one mesh, point data "label" holding the object's label (and the arrays all share).
+TriangleMesh allSurfaces(const SegmentationResult& res) {
+  TriangleMesh all;
+  int nv = 0, nf = 0;
+  for (const ObjectResult& o : res.objects) {
+    nv += o.mesh.vertexCount();
+    nf += o.mesh.faceCount();
+  }
+  all.vertices.resize(nv, 3);
+  all.faces.resize(nf, 3);
+  Eigen::VectorXd label(nv);
+  std::map<std::string, Eigen::VectorXd> data;
+  for (const auto& kv : res.objects.front().mesh.pointData) data[kv.first].resize(nv);
+  int v = 0, f = 0;
+  for (const ObjectResult& o : res.objects) {
+    const int n = o.mesh.vertexCount();
+    all.vertices.middleRows(v, n) = o.mesh.vertices;
+    all.faces.middleRows(f, o.mesh.faceCount()) = o.mesh.faces.array() + v;
+    label.segment(v, n).setConstant(o.label);
+    for (auto it = data.begin(); it != data.end();) {
+      const auto own = o.mesh.pointData.find(it->first);
+      if (own == o.mesh.pointData.end()) {
+        it = data.erase(it);
+      } else {
+        it->second.segment(v, n) = own->second;
+        ++it;
+      }
+    }
+    v += n;
+    f += o.mesh.faceCount();
+  }
+  all.pointData = std::move(data);
+  all.pointData["label"] = label;
+  return all;
+}
+
+/// The module's parameters: the options 3D Slicer's panel shows for `mskseg segment`.
+SlicerModule segmentModule() {
+  SlicerModule m;
+  m.title = "mskseg segment";
+  m.description =
+      "Segments bones and muscles with deformable simplex meshes: an atlas (mskseg atlas) is placed in the image by "
+      "registration, or a scene's templates already in place are evolved; writes the label map and the surfaces.";
+  SlicerGroup io{"Input and output", "The image, the atlas or scene, and where the results go.", false, {}};
+  SlicerParameter p;
+  p = {};
+  p.tag = "image", p.option = "--image", p.label = "Input volume", p.imageType = "scalar", p.fileExtensions = ".nii.gz";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "directory", p.option = "--atlas", p.label = "Atlas folder";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "file", p.option = "--scene", p.label = "Scene (instead of an atlas)", p.fileExtensions = ".json";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "image", p.option = "--label-map", p.label = "Output label map", p.channel = "output", p.imageType = "label",
+  p.fileExtensions = ".nii.gz";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "geometry", p.option = "--surfaces", p.label = "Output surfaces", p.channel = "output", p.imageType = "model",
+  p.fileExtensions = ".vtk";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "directory", p.option = "--out", p.label = "Folder of all outputs (optional)", p.channel = "output";
+  io.parameters.push_back(p);
+  m.groups.push_back(io);
+
+  SlicerGroup run{"Segmentation", "Speed against accuracy, and what is written besides.", false, {}};
+  p = {};
+  p.tag = "string-enumeration", p.option = "--quality", p.label = "Quality", p.defaultValue = "balanced",
+  p.elements = {"fast", "balanced", "accurate"};
+  run.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--split", p.label = "One mask per structure", p.defaultValue = "false";
+  run.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--no-qc", p.label = "No QC pictures", p.defaultValue = "false";
+  run.parameters.push_back(p);
+  p = {};
+  p.tag = "integer", p.option = "--threads", p.label = "Threads (0: all cores)", p.defaultValue = "1",
+  p.hasRange = true, p.minimum = 0, p.maximum = 256, p.step = 1;
+  run.parameters.push_back(p);
+  m.groups.push_back(run);
+
+  SlicerGroup placing{"Atlas placement", "How an atlas is placed in the image.", true, {}};
+  p = {};
+  p.tag = "string-enumeration", p.option = "--metric", p.label = "Registration metric", p.defaultValue = "auto",
+  p.elements = {"auto", "ncc", "mi"};
+  placing.parameters.push_back(p);
+  p = {};
+  p.tag = "file", p.option = "--init-transform", p.label = "Initial transform", p.fileExtensions = ".tfm,.txt,.json";
+  placing.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--no-register", p.label = "No registration", p.defaultValue = "false";
+  placing.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--no-object-register", p.label = "No per-object registration",
+  p.defaultValue = "false";
+  placing.parameters.push_back(p);
+  p = {};
+  p.tag = "boolean", p.option = "--progress-tags", p.label = "Progress in Slicer", p.defaultValue = "true",
+  p.hidden = true;
+  placing.parameters.push_back(p);
+  m.groups.push_back(placing);
+  return m;
+}
+
 }  // namespace
 
 int cmdSegment(const std::vector<std::string>& argv) {
@@ -150,7 +273,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal, its "
       "shape memory and a global shape prior; objects evolve together, and the scene's collision pairs keep their "
       "surfaces apart.");
-  std::string imagePath, scenePath, atlasDir, out, metric = "auto", initTransform;
+  std::string imagePath, scenePath, atlasDir, out, metric = "auto", initTransform, labelMapPath, surfacesPath;
   PlacementOptions placing;
   bool noRegister = false, noObjectRegister = false;
   app.add_option("--image", imagePath, "the image (NIfTI)")->required();
@@ -171,10 +294,19 @@ int cmdSegment(const std::vector<std::string>& argv) {
                "it");
   app.add_flag("--no-object-register", noObjectRegister,
                "with --atlas: the global registration only, no registration of each object's neighbourhood");
-  app.add_option("--out", out, "output folder (appears whole or not at all)")->required();
+  CLI::Option* outOpt =
+      app.add_option("--out", out,
+                     "output folder, created with its parents (appears whole or not at all; an existing folder gets "
+                     "the files added, replacing those of the same name)");
+  app.add_option("--label-map", labelMapPath,
+                 "also the label map as this NIfTI file (.nii.gz or .nii), e.g. the output of the 3D Slicer module");
+  app.add_option("--surfaces", surfacesPath,
+                 "also every object's surface in this one mesh file (.vtk .vtp .stl .obj .ply), point data \"label\" "
+                 "holding each object's label");
   SegmentOptions opts;
   SegmentOutputs outputs;
   addSegmentOptions(app, opts, outputs);
+  addProgressTagsOption(app);
   app.footer(
       "Writes into OUT: <name>.vtk per object (LPS unless --mesh-space ras; <name>.vtu too for a volumetric object; "
       "point data displacement_mm and image_residual_mm), labels.nii.gz (on the input grid with its affine), "
@@ -186,12 +318,20 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "and qc/mosaic.png "
       "(the whole case: four slices per view, every object's contour, a legend); with --atlas "
       "also placement.tfm, the global placement as a 3D Slicer transform.");
+  if (handleSlicerXml(app, argv, segmentModule())) return 0;
   if (!parseArgs(app, argv)) return 0;
   if (!sceneOpt->count() && !atlasOpt->count()) throw UsageError("give --scene or --atlas");
+  if (!outOpt->count() && labelMapPath.empty() && surfacesPath.empty())
+    throw UsageError("give --out (or --label-map or --surfaces)");
+  if (!labelMapPath.empty() && !isNiftiName(labelMapPath))
+    throw UsageError("--label-map '" + labelMapPath + "': use a .nii.gz or .nii name");
+  if (!surfacesPath.empty()) requireMeshOutput(surfacesPath);
   if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto" || !initTransform.empty()))
     throw UsageError("--metric, --init-transform, --no-register and --no-object-register need --atlas");
   checkSegmentOptions(opts);
-  checkOutputFolder(out);
+  if (!out.empty()) checkOutputFolder(out);
+  if (!labelMapPath.empty()) checkOutputFile(labelMapPath);
+  if (!surfacesPath.empty()) checkOutputFile(surfacesPath);
 
   NiftiInfo info;
   const ImageF image = readNifti<float>(imagePath, &info);
@@ -233,12 +373,17 @@ int cmdSegment(const std::vector<std::string>& argv) {
   report["image_info"] = imageJson(image, info);
   report["mesh_space"] = meshSpaceName(outputs.space);
   report.update(segmentReport(res, scene, opts));
-  writeFolderAtomically(out, [&](const std::string& dir) {
-    writeOutputs(dir, res, scene, image, info, outputs, qcReference ? &*qcReference : nullptr, report);
-    if (placement) writePlacementTransform(dir, *placement);
-  });
+  if (!out.empty())
+    writeFolderAtomically(out, [&](const std::string& dir) {
+      writeOutputs(dir, res, scene, image, info, outputs, qcReference ? &*qcReference : nullptr, report);
+      if (placement) writePlacementTransform(dir, *placement);
+    });
+  if (!labelMapPath.empty())
+    writeFileWithParents(labelMapPath, [&] { writeLabelMap(labelMapPath, res.labels, scene, info); });
+  if (!surfacesPath.empty())
+    writeFileWithParents(surfacesPath, [&] { writeMesh(surfacesPath, allSurfaces(res), outputs.space); });
   warnQuality(res);
-  printSummary(res, scene, out);
+  printSummary(res, scene, out.empty() ? (labelMapPath.empty() ? surfacesPath : labelMapPath) : out);
   return 0;
 }
 

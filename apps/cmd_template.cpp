@@ -9,6 +9,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/segmentation/template_builder.h"
+#include "slicer_module.h"
 
 namespace msk::cli {
 
@@ -36,6 +37,39 @@ void addTemplateOptions(CLI::App& app, TemplateOptions& opts) {
             "staircase of thick slices)");
 }
 
+namespace {
+/// The module's parameters: the options 3D Slicer's panel shows for `mskseg template`.
+SlicerModule templateModule() {
+  SlicerModule m;
+  m.title = "mskseg template";
+  m.description = "A smooth closed template surface of one label of a label map (for a scene of mskseg segment).";
+  SlicerGroup io{"Input and output", "The label map, the label and the surface written.", false, {}};
+  SlicerParameter p;
+  p.tag = "image", p.option = "--labels", p.label = "Label map", p.imageType = "label", p.fileExtensions = ".nii.gz";
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "integer", p.option = "--label", p.label = "Label", p.defaultValue = "1", p.hasRange = true, p.minimum = 1,
+  p.maximum = 2147483647, p.step = 1;
+  io.parameters.push_back(p);
+  p = {};
+  p.tag = "geometry", p.option = "--out", p.label = "Template surface", p.channel = "output", p.imageType = "model",
+  p.fileExtensions = ".vtk";
+  io.parameters.push_back(p);
+  m.groups.push_back(io);
+  SlicerGroup shape{"Surface", "Its resolution and smoothness.", false, {}};
+  p = {};
+  p.tag = "integer", p.option = "--vertices", p.label = "Vertices", p.defaultValue = "3000", p.hasRange = true,
+  p.minimum = 4, p.maximum = 100000, p.step = 100;
+  shape.parameters.push_back(p);
+  p = {};
+  p.tag = "double", p.option = "--smooth", p.label = "Label blur (mm, 0: automatic)", p.defaultValue = "0",
+  p.hasRange = true, p.minimum = 0, p.maximum = 20, p.step = 0.1;
+  shape.parameters.push_back(p);
+  m.groups.push_back(shape);
+  return m;
+}
+}  // namespace
+
 int cmdTemplate(const std::vector<std::string>& argv) {
   CommandLine app(
       "template",
@@ -49,7 +83,8 @@ int cmdTemplate(const std::vector<std::string>& argv) {
   MeshSpace space = MeshSpace::LPS;
   app.add_option("--labels", labelsPath, "label map (NIfTI)")->required();
   app.add_option("--label", label, "the label, 1..2147483647")->required();
-  app.add_option("--out", out, "the mesh to write (.vtk .vtp .stl .obj .ply)")->required();
+  app.add_option("--out", out, "the mesh to write (.vtk .vtp .stl .obj .ply), its folder created if missing")
+      ->required();
   addTemplateOptions(app, opts);
   app.add_option_function<double>(
          "--mirror-x", [&mirrorX](double x) { mirrorX = x; },
@@ -57,6 +92,7 @@ int cmdTemplate(const std::vector<std::string>& argv) {
          "right-side label")
       ->type_name("MM");
   addMeshSpace(app, space, "lps (default) or ras; tagged");
+  if (handleSlicerXml(app, argv, templateModule())) return 0;
   if (!parseArgs(app, argv)) return 0;
   if (label < 1 || label > 2147483647L)
     throw ParameterError("--label", std::to_string(label), "must be in 1..2147483647");
@@ -64,13 +100,14 @@ int cmdTemplate(const std::vector<std::string>& argv) {
   if (mirrorX && !std::isfinite(*mirrorX))
     throw ParameterError("--mirror-x", std::to_string(*mirrorX), "must be finite");
   requireMeshOutput(out);
+  checkOutputFile(out);
 
   const LabelMap labels = readNifti<int32_t>(labelsPath);
   requireLabel(labels, label, labelsPath);
   TemplateReport report;
   TriangleMesh mesh = templateFromLabels(labels, static_cast<int>(label), opts, &report);
   if (mirrorX) mesh = mirrorMesh(mesh, Eigen::Vector3d(*mirrorX, 0, 0), Eigen::Vector3d::UnitX());
-  writeMesh(out, mesh, space);
+  writeFileWithParents(out, [&] { writeMesh(out, mesh, space); });
   std::cout << out << ": " << mesh.vertexCount() << " vertices, " << mesh.faceCount() << " faces, volume "
             << enclosedVolume(mesh) / 1000.0 << " mL (label " << label << ": " << report.voxels << " voxels, "
             << report.maskVolumeMm3 / 1000.0 << " mL";

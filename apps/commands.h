@@ -58,14 +58,25 @@ void requireLabel(const LabelMap& labels, long label, const std::string& labelsP
 /// The command line as a JSON array ["mskseg", command, args...], for the results it produced.
 Json commandLineJson(const std::string& command, const std::vector<std::string>& args);
 
-/// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet.
+/// A progress reporter printing "stage: NN%" lines on stderr (throttled), silent under --quiet; with progress tags on
+/// (setProgressTags()) also the task's fraction as <filter-progress> tags on stdout, under --quiet too.
 ProgressFn stderrProgress(const std::string& task);
 
-/// Throws IoError naming `dir` if it cannot become an output folder (its parent is missing, or it is a file): called
-/// before long work, so that a mistyped --out fails at once rather than after the run.
+/// Turns the <filter-progress> tags of stderrProgress() on (3D Slicer reads them from a module's stdout).
+void setProgressTags(bool on);
+
+/// Throws IoError naming `dir` if it cannot become an output folder (it is a file, or a file stands where one of its
+/// missing parents would be created): called before long work, so that a mistyped --out fails at once.
 void checkOutputFolder(const std::string& dir);
 
-/// Writes into a staging folder beside `dir`, then moves the files into `dir` (created if needed); on error the
-/// staging folder is removed and nothing appears in `dir`.
+/// The same for an output file: throws IoError naming `path` if it is a folder or its parents cannot be created.
+void checkOutputFile(const std::string& path);
+
+/// Creates the missing parent folders of `path`, then runs `write` (which writes `path` atomically); if it throws,
+/// the folders created are removed again.
+void writeFileWithParents(const std::string& path, const std::function<void()>& write);
+
+/// Writes into a staging folder beside `dir`, then moves the files into `dir` (created with its missing parents); on
+/// error the staging folder and the parents created are removed and nothing appears in `dir`.
 void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string& staging)>& write);
 }  // namespace msk::cli

@@ -53,10 +53,22 @@ void printHelp() {
                "world coordinates: NIfTI RAS mm internally; mesh files LPS with a SPACE tag unless --mesh-space ras\n";
 }
 
+/// The command a copy of the program runs as, from its name: "mskseg-segment" runs as `mskseg segment` (the 3D Slicer
+/// modules); "" for mskseg itself.
+std::string commandOfProgramName(const char* argv0) {
+  std::string name = argv0 == nullptr ? "" : argv0;
+  name = name.substr(name.find_last_of('/') + 1);
+  const std::string prefix = "mskseg-";
+  if (name.rfind(prefix, 0) != 0) return "";
+  const std::string command = name.substr(prefix.size());
+  return commands().count(command) ? command : "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
+  if (const std::string command = commandOfProgramName(argv[0]); !command.empty()) args.insert(args.begin(), command);
   msk::LogLevel level = msk::LogLevel::Info;
   std::vector<std::string> rest;
   for (const auto& a : args) {

@@ -22,14 +22,37 @@ Json commandLineJson(const std::string& command, const std::vector<std::string>&
   return cmd;
 }
 
+namespace {
+bool progressTags = false;
+
+/// Slicer's progress protocol: a <filter-start> block naming the task, <filter-progress> with the fraction done,
+/// <filter-end> when the task reports its stage "done" (until then the fraction stops short of 1).
+void printProgressTags(const std::string& task, double f, bool first, const std::string& stage) {
+  if (first)
+    std::cout << "<filter-start>\n<filter-name>mskseg " << task << "</filter-name>\n<filter-comment>" << stage
+              << "</filter-comment>\n</filter-start>\n";
+  const bool done = stage == "done";
+  std::cout << "<filter-progress>" << (done ? 1.0 : std::min(f, 0.99)) << "</filter-progress>\n";
+  if (done) std::cout << "<filter-end>\n<filter-name>mskseg " << task << "</filter-name>\n</filter-end>\n";
+  std::cout.flush();
+}
+}  // namespace
+
+void setProgressTags(bool on) { progressTags = on; }
+
 ProgressFn stderrProgress(const std::string& task) {
   struct State {
     std::string stage;
-    int lastPercent = -1;
+    int lastPercent = -1, lastTagPercent = -1;
     std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now(), last;
   };
   auto st = std::make_shared<State>();
   return [st, task](double f, const std::string& stage) {
+    if (progressTags) {
+      const int pct = stage == "done" ? 100 : static_cast<int>(std::floor(100.0 * std::min(0.99, std::max(0.0, f))));
+      if (pct != st->lastTagPercent) printProgressTags(task, pct / 100.0, st->lastTagPercent < 0, stage);
+      st->lastTagPercent = pct;
+    }
     if (log::level() > LogLevel::Info) return;
     int pct = static_cast<int>(std::lround(100.0 * std::min(1.0, std::max(0.0, f))));
     auto now = std::chrono::steady_clock::now();
@@ -49,26 +72,79 @@ ProgressFn stderrProgress(const std::string& task) {
 }
 
 namespace {
+/// The folders above `target` that do not exist yet, outermost first. Throws IoError naming `shown` if the nearest
+/// existing one is not a folder.
+std::vector<fs::path> missingParents(const fs::path& target, const std::string& shown) {
+  std::vector<fs::path> missing;
+  std::error_code ec;
+  fs::path p = target.parent_path();
+  while (!p.empty() && !fs::exists(p, ec)) {
+    missing.insert(missing.begin(), p);
+    if (p == p.parent_path()) break;
+    p = p.parent_path();
+  }
+  if (!p.empty() && !fs::is_directory(p, ec)) throw IoError(shown, p.string() + " is not a folder");
+  return missing;
+}
+
 /// The absolute target folder of `dir`, after checking that it can be written (see checkOutputFolder()).
 fs::path checkedTarget(const std::string& dir) {
   fs::path target = fs::absolute(dir).lexically_normal();
   if (target.filename().empty()) target = target.parent_path();
   std::error_code ec;
   if (fs::exists(target, ec) && !fs::is_directory(target, ec)) throw IoError(dir, "exists and is not a folder");
-  if (!fs::is_directory(target.parent_path(), ec)) throw IoError(dir, "parent folder does not exist");
+  missingParents(target, dir);
   return target;
+}
+
+/// Creates the missing folders above `target`; returns those it created, outermost first.
+std::vector<fs::path> createParents(const fs::path& target, const std::string& shown) {
+  const std::vector<fs::path> missing = missingParents(target, shown);
+  std::error_code ec;
+  for (const fs::path& p : missing)
+    if (!fs::create_directory(p, ec) && !fs::is_directory(p))
+      throw IoError(shown, "cannot create folder " + p.string() + ": " + ec.message());
+  return missing;
+}
+
+/// Removes the folders createParents() made, innermost first, where they are still empty.
+void removeCreated(const std::vector<fs::path>& created) {
+  std::error_code ec;
+  for (auto p = created.rbegin(); p != created.rend(); ++p)
+    if (fs::is_empty(*p, ec)) fs::remove(*p, ec);
 }
 }  // namespace
 
 void checkOutputFolder(const std::string& dir) { checkedTarget(dir); }
 
+void checkOutputFile(const std::string& path) {
+  const fs::path target = fs::absolute(path).lexically_normal();
+  std::error_code ec;
+  if (target.filename().empty() || fs::is_directory(target, ec)) throw IoError(path, "is a folder, not a file name");
+  missingParents(target, path);
+}
+
+void writeFileWithParents(const std::string& path, const std::function<void()>& write) {
+  const std::vector<fs::path> created = createParents(fs::absolute(path).lexically_normal(), path);
+  try {
+    write();
+  } catch (...) {
+    removeCreated(created);
+    throw;
+  }
+}
+
 void writeFolderAtomically(const std::string& dir, const std::function<void(const std::string&)>& write) {
   const fs::path target = checkedTarget(dir);
+  const std::vector<fs::path> created = createParents(target, dir);
   std::error_code ec;
   fs::path parent = target.parent_path();
   fs::path staging = parent / ("." + target.filename().string() + ".partial" + std::to_string(::getpid()));
   fs::remove_all(staging, ec);
-  if (!fs::create_directory(staging, ec)) throw IoError(staging.string(), "cannot create folder: " + ec.message());
+  if (!fs::create_directory(staging, ec)) {
+    removeCreated(created);
+    throw IoError(staging.string(), "cannot create folder: " + ec.message());
+  }
   try {
     write(staging.string());
     if (!fs::exists(target, ec)) {
@@ -89,6 +165,7 @@ void writeFolderAtomically(const std::string& dir, const std::function<void(cons
     fs::remove_all(staging, ec);
   } catch (...) {
     fs::remove_all(staging, ec);
+    removeCreated(created);
     throw;
   }
 }

@@ -201,7 +201,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     files[fs::path(o.templatePath).filename().string()] = sha256File(o.templatePath);
   atlas["files_sha256"] = files;
   writeJsonFile(dir + "/atlas.json", atlas);
-  if (progress) progress(1.0, "atlas");
+  if (progress) progress(1.0, "done");
   return atlas;
 }
 
@@ -377,6 +377,7 @@ Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementO
   }
   keepPairsApart(atlas, p);
   p.seconds = since(t0);
+  if (progress) progress(1.0, "done");
   return p;
 }
 

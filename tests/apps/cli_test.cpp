@@ -218,13 +218,13 @@ TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
   }
 }
 
-// A mistyped --out (parent folder missing, or a file) fails at once, before the phantom is built or the scene
-// segmented, with one line naming the folder.
+// A mistyped --out (a file, or a file where one of its parents would be) fails at once, before the phantom is built
+// or the scene segmented, with one line naming the folder.
 TEST(Cli, BadOutputFolderFailsBeforeTheWork) {
   ScratchDir dir;
   msk::test::writeBytes(dir.file("afile"), "x");
-  for (const std::string& out : {dir.file("missing/p"), dir.file("afile")}) {
-    const std::string phrase = out == dir.file("afile") ? "not a folder" : "parent folder does not exist";
+  for (const std::string& out : {dir.file("afile/p"), dir.file("afile")}) {
+    const std::string phrase = out == dir.file("afile") ? "exists and is not a folder" : "afile is not a folder";
     for (const std::vector<std::string>& cmd :
          {std::vector<std::string>{"phantom", "--seed", "1", "--out", out},
           std::vector<std::string>{"segment", "--image", dir.file("none.nii.gz"), "--scene", dir.file("none.json"),
@@ -236,4 +236,18 @@ TEST(Cli, BadOutputFolderFailsBeforeTheWork) {
       EXPECT_EQ(r.err.find('%'), std::string::npos) << cmd[0] << ": work started before the check: " << r.err;
     }
   }
+}
+
+// --out's missing parent folders are created with it; a run that fails leaves none of them behind.
+TEST(Cli, MissingParentsOfTheOutputFolderAreCreated) {
+  ScratchDir dir;
+  const std::string out = dir.file("study/subject-1/phantom");
+  const CliResult r = runCli({"phantom", "--seed", "1", "--out", out, "--quiet"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(out + "/image.nii.gz"));
+  const std::string failed = dir.file("other/subject-2/out");
+  const CliResult bad =
+      runCli({"segment", "--image", dir.file("none.nii.gz"), "--scene", dir.file("none.json"), "--out", failed});
+  EXPECT_EQ(bad.exitCode, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("other")));
 }

@@ -320,7 +320,9 @@ TEST(BatchCli, BidsDatasetBecomesADerivative) {
     for (const fs::path& p : rel.parent_path()) folders.push_back(p.string());
     ASSERT_GE(folders.size(), 2u) << rel;
     EXPECT_EQ(folders[0], "sub-" + ent.at("sub")) << rel;
-    if (ent.count("ses")) EXPECT_EQ(folders[1], "ses-" + ent.at("ses")) << rel;
+    if (ent.count("ses")) {
+      EXPECT_EQ(folders[1], "ses-" + ent.at("ses")) << rel;
+    }
     EXPECT_TRUE(folders.back() == "anat" || folders.back() == "figures") << rel;
     const std::string key = "sub-" + ent.at("sub") + (ent.count("ses") ? "_ses-" + ent.at("ses") : "");
     kinds[key].insert((ent.count("label") ? ent.at("label") + ":" : "") + ent.at("suffix") + ent.at("extension"));
@@ -567,7 +569,9 @@ TEST(BatchCli, KilledAtRandomMomentsTheRerunGivesTheUninterruptedResults) {
     }
     const int ended = msk::test::waitCli(batch, 60);
     if (!killCase) hit = ended == 128 + SIGKILL;
-    if (killCase && hit) EXPECT_EQ(ended, 1) << "the killed case failed, the batch went on";
+    if (killCase && hit) {
+      EXPECT_EQ(ended, 1) << "the killed case failed, the batch went on";
+    }
     hits += hit;
     EXPECT_TRUE(waitForNoProcess(out + "/", 10).empty()) << "a case outlived its batch";
     const auto rerun = runCli(args(out));

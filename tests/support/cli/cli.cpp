@@ -24,9 +24,11 @@ std::string quote(const std::string& s) {
 }
 }  // namespace
 
-CliResult runCli(const std::vector<std::string>& args) {
+CliResult runCli(const std::vector<std::string>& args) { return runProgram(MSKSEG_EXE, args); }
+
+CliResult runProgram(const std::string& exe, const std::vector<std::string>& args) {
   ScratchDir tmp;
-  std::string cmd = quote(MSKSEG_EXE);
+  std::string cmd = quote(exe);
   for (const auto& a : args) cmd += " " + quote(a);
   cmd += " >" + quote(tmp.file("out")) + " 2>" + quote(tmp.file("err")) + " </dev/null";
   int status = std::system(cmd.c_str());

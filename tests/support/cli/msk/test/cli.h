@@ -14,6 +14,9 @@ struct CliResult {
 /// Runs the built mskseg with arguments (each shell-quoted), capturing stdout and stderr.
 CliResult runCli(const std::vector<std::string>& args);
 
+/// Runs the program `exe` (e.g. a 3D Slicer module's copy of mskseg) the same way.
+CliResult runProgram(const std::string& exe, const std::vector<std::string>& args);
+
 /// The built mskseg running in the background (stdout and stderr into files), started by startCli().
 struct CliProcess {
   int pid = -1;
