@@ -1,4 +1,5 @@
 // mskseg segment: the scene's templates evolved into the image; meshes, label map, report and QC pictures.
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -138,10 +139,21 @@ void warnQuality(const SegmentationResult& res) {
             " object(s) not ok; the outputs are written, see report.json objects[].quality)");
 }
 
+/// Seconds with two decimals.
+std::string secs(double s) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f s", s);
+  return b;
+}
+
 /// The run's summary on stdout.
 void printSummary(const SegmentationResult& res, const Scene& scene, const std::string& out) {
-  std::cout << "segmented " << res.objects.size() << " object(s) in " << res.seconds << " s -> " << out << ", status "
-            << qualityStatusName(res.status) << "\n";
+  std::cout << "segmented " << res.objects.size() << " object(s) in " << secs(res.seconds) << " -> " << out
+            << ", status " << qualityStatusName(res.status) << "\n";
+  double projection = 0;
+  for (const auto& kv : res.secondsPerFamily) projection += kv.second;
+  std::cout << "  evolution " << secs(res.secondsPerStage.at("evolution")) << ", of which constraint projection "
+            << secs(projection) << " for all objects together (report.json timing)\n";
   if (scene.objects.size() > 1)
     std::cout << "  voxels inside two objects: " << res.overlapVoxels
               << (res.collisionSetsBuilt > 0 ? "" : " (no collision response: no pairs declared or --no-collisions)")
@@ -152,9 +164,10 @@ void printSummary(const SegmentationResult& res, const Scene& scene, const std::
   for (const auto& o : res.objects) {
     int steps = 0;
     for (const auto& l : o.levels) steps += l.steps;
-    std::cout << "  " << o.name << ": " << steps << " steps, " << o.seconds << " s, volume " << o.volumeMm3 / 1000.0
-              << " mL (template " << o.templateVolumeMm3 / 1000.0 << " mL), mean residual " << o.meanImageResidualMm
-              << " mm, " << qualityStatusName(o.quality.status) << "\n";
+    std::cout << "  " << o.name << ": " << steps << " steps, " << o.mesh.vertexCount() << " vertices, image search "
+              << secs(o.imageSearchSeconds) << ", volume " << o.volumeMm3 / 1000.0 << " mL (template "
+              << o.templateVolumeMm3 / 1000.0 << " mL), mean residual " << o.meanImageResidualMm << " mm, "
+              << qualityStatusName(o.quality.status) << "\n";
   }
 }
 

@@ -28,21 +28,13 @@ std::string pairName(const Scene& scene, size_t k, const char* sep) {
   return scene.objects[static_cast<size_t>(p.a)].name + sep + scene.objects[static_cast<size_t>(p.b)].name;
 }
 
-/// Projection time per family over the scene. Objects evolved together in one stacked solver each carry the solver's
-/// whole time for a family (the same value in every object): counted once; per-object times (image search) are summed.
+/// Projection time per family over the scene (the run's, every object's constraints of a family together), and the
+/// objects' image search summed as "image-search".
 std::map<std::string, double> familySeconds(const SegmentationResult& res) {
-  std::map<std::string, double> families;
-  std::map<std::string, std::vector<double>> perObject;
-  for (const ObjectResult& o : res.objects)
-    for (const auto& [family, s] : o.secondsPerFamily) perObject[family].push_back(s);
-  for (const auto& [family, values] : perObject) {
-    const double first = values.front();
-    const bool shared = values.size() == res.objects.size() && values.size() > 1 &&
-                        std::all_of(values.begin(), values.end(), [first](double v) { return v == first; });
-    double sum = 0;
-    for (double v : values) sum += v;
-    families[family] = shared ? values.front() : sum;
-  }
+  std::map<std::string, double> families = res.secondsPerFamily;
+  double search = 0;
+  for (const ObjectResult& o : res.objects) search += o.imageSearchSeconds;
+  families["image-search"] = search;
   return families;
 }
 

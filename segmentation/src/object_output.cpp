@@ -56,7 +56,7 @@ void finishObject(ObjectState& st, bool unfold) {
   }
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);
-  out.secondsPerFamily["image-search"] += st.searchSeconds;
+  out.imageSearchSeconds = st.searchSeconds;
   const std::string problem = closedMeshProblem(out.mesh);
   if (!problem.empty()) throw Error(st.obj->name + ": the evolved surface is invalid: " + problem);
 }

@@ -148,7 +148,7 @@ Json objectJson(const ObjectResult& o) {
   j["polarity"] = polarityName(o.polarity);
   j["force"] = o.force == TargetMode::Profile ? "profile" : "gradient";
   j["vertices"] = o.mesh.vertexCount();
-  j["seconds"] = o.seconds;
+  j["image_search_s"] = o.imageSearchSeconds;
   j["volume_mm3"] = o.volumeMm3;
   j["template_volume_mm3"] = o.templateVolumeMm3;
   j["template_vertices"] = o.templateVertices;
@@ -188,9 +188,6 @@ Json objectJson(const ObjectResult& o) {
   }
   j["steps"] = totalSteps;
   j["levels"] = lv;
-  Json fam = Json::object();
-  for (const auto& kv : o.secondsPerFamily) fam[kv.first] = kv.second;
-  j["seconds_per_constraint_family"] = fam;
   j["quality"] = qualityJson(o.quality);
   return j;
 }
@@ -203,6 +200,9 @@ Json segmentReport(const SegmentationResult& res, const Scene& scene, const Segm
   timing["total_s"] = res.seconds;
   for (const auto& kv : res.secondsPerStage) timing[kv.first + "_s"] = kv.second;
   timing["image_scales_built"] = res.featureScalesBuilt;
+  Json fam = Json::object();
+  for (const auto& kv : res.secondsPerFamily) fam[kv.first] = kv.second;
+  timing["constraint_projection_s"] = fam;
   report["timing"] = timing;
   report["overlap_voxels"] = res.overlapVoxels;
   report["collision_sets_built"] = res.collisionSetsBuilt;

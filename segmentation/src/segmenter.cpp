@@ -115,6 +115,7 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
       detectSeconds += since(tc);
     }
     collectPass(objs, fixed, solver, l, order, rep);
+    for (const auto& [family, s] : solver.secondsPerFamily()) res.secondsPerFamily[family] += s;
   }
   return detectSeconds;
 }
@@ -199,7 +200,6 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   const double detectSeconds = evolve(objs, res, scene, contacts, opts, features, image.grid, progress);
   for (ObjectState& st : objs) {
     finishObject(st, opts.surface.unfoldSurfaces);
-    st.out.seconds = since(te) / static_cast<double>(objs.size());
     res.objects.push_back(std::move(st.out));
   }
   double featureSeconds = features.seconds();

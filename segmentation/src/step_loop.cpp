@@ -87,7 +87,6 @@ void collectPass(std::vector<ObjectState>& objs, const std::vector<char>& fixed,
     if (!(curDiag < 5.0 * refDiag && curDiag > 0.2 * refDiag))
       throw Error(st.obj->name + ": evolution diverged at level " + std::to_string(order + 1) + " (size ×" +
                   std::to_string(curDiag / refDiag) + " of the template); lower the stiffness or check the image");
-    for (const auto& kv : solver.secondsPerFamily()) st.out.secondsPerFamily[kv.first] += kv.second;
     LevelReport r = report;
     r.vertices = st.current.vertexCount();
     r.driftMmPerStep = st.driftMmPerStep;

@@ -63,10 +63,11 @@ struct ObjectResult {
   /// (hasProfileSource()), which falls back to the gradient force with a warning
   TargetMode force = TargetMode::Gradient;
   std::vector<LevelReport> levels;  ///< coarse first
-  double seconds = 0;               ///< evolution time, shared equally among the objects evolved together
+  /// Time of the object's own work in the evolution: the image search of its vertices, s. (The constraint projection
+  /// of objects evolved together is one solve, timed for the run in SegmentationResult::secondsPerFamily.)
+  double imageSearchSeconds = 0;
   double volumeMm3 = 0, templateVolumeMm3 = 0;
-  double meanImageResidualMm = 0;                  ///< mean |target offset| at the end
-  std::map<std::string, double> secondsPerFamily;  ///< constraint projection time by family, plus "image-search"
+  double meanImageResidualMm = 0;     ///< mean |target offset| at the end
   TetMesh volumeMesh;                 ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
   double volumeModelMm3 = 0;          ///< its volume, mm³ (0 without a volume model)
   double volumeModelTemplateMm3 = 0;  ///< the volume of the tetrahedralised template, mm³
@@ -94,6 +95,8 @@ struct SegmentationResult {
   /// Seconds per stage: "features", "evolution" (with "axis-first" a part of it), "collision-detection",
   /// "separation", "surface-check", "rasterise", "quality-check".
   std::map<std::string, double> secondsPerStage;
+  /// Constraint projection time of the run by family (every object's constraints of the family together), s.
+  std::map<std::string, double> secondsPerFamily;
   int featureScalesBuilt = 0;  ///< distinct image scales computed (each once)
   int collisionSetsBuilt = 0;  ///< directed vertex–surface collision sets built over all levels (0 without pairs)
   int volumeModelsBuilt = 0;   ///< objects given a 3-simplex volume model (0 unless a model asks)
