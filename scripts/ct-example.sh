@@ -4,17 +4,20 @@
 # mirrored across the midline (the x of the sacrum's centroid, label 25), each learning its intensity profiles on the
 # left structure it came from; the bones take the refinement pass. Then each result is scored against the right side's labels. The
 # templates start where the mirror puts them (the test RealScenes.CtFemurHipAndGlutealMusclesOfOneSide also displaces
-# and scales them). Usage: bash scripts/ct-example.sh [DATA_DIR] (default ../shared/data); needs a build. Environment:
-# MSKSEG (the program; default build/apps/mskseg), MSK_OUT_DIR (default out/ct-example).
+# and scales them). Usage: bash scripts/ct-example.sh [DATA_DIR [OUT_DIR]] (default ../shared/data and a new temporary
+# folder; OUT_DIR must be new, empty, or an earlier output of this script); needs a build. Environment: MSKSEG (the
+# program; default build/apps/mskseg), MSK_OUT_DIR (OUT_DIR when not given).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 exe="${MSKSEG:-${MSK_BUILD_DIR:-$here/build}/apps/mskseg}"
 data="${1:-$here/../shared/data}/totalseg-ct"
-out="${MSK_OUT_DIR:-$here/out/ct-example}"
+out="${2:-${MSK_OUT_DIR:-}}"
 [ -x "$exe" ] || { echo "ct-example: build first (bash scripts/build.sh)" >&2; exit 1; }
 [ -f "$data/ct.nii.gz" ] || { echo "ct-example: $data/ct.nii.gz not found" >&2; exit 1; }
-rm -rf "$out"
-mkdir -p "$out"
+source "$here/scripts/output-folder.sh"
+if [ -z "$out" ]; then out="$(mktemp -d "${TMPDIR:-/tmp}/mskseg-ct-example.XXXXXX")"; fi
+prepare_output_folder ct-example "$out"
+echo "ct-example: writing into $out" >&2
 
 # The scene: each right-side object's template from the left side's label, mirrored across the midline (x of the
 # sacrum's centroid, label 25), learning its profiles there; every pair may touch; the bones refine.

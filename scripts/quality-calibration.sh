@@ -5,15 +5,20 @@
 # and with the templates centred in it); prints each object's quality figures from report.json. Usage:
 # bash scripts/quality-calibration.sh [CASE ...] (default: all; cases: bundled moved noise constant mr ct ct-centred
 # seed2 ... seed6). Needs a build, python3 and ../shared/data for mr/ct. Environment: MSKSEG (the program; default
-# build/apps/mskseg), MSK_OUT_DIR (default out/quality-calibration), QUALITY (the preset, default balanced).
+# build/apps/mskseg), MSK_OUT_DIR (the output folder: new, empty, or an earlier output of this script; default a new
+# temporary folder), QUALITY (the preset, default balanced).
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 exe="${MSKSEG:-${MSK_BUILD_DIR:-$here/build}/apps/mskseg}"
 data="$here/../shared/data"
 sample="$here/data-samples/thigh-seed1"
-out="${MSK_OUT_DIR:-$here/out/quality-calibration}"
+out="${MSK_OUT_DIR:-}"
 quality="${QUALITY:-balanced}"
 [ -x "$exe" ] || { echo "quality-calibration: build first (bash scripts/build.sh)" >&2; exit 1; }
+source "$here/scripts/output-folder.sh"
+if [ -z "$out" ]; then out="$(mktemp -d "${TMPDIR:-/tmp}/mskseg-quality-calibration.XXXXXX")"; fi
+prepare_output_folder quality-calibration "$out"
+echo "quality-calibration: writing into $out" >&2
 mkdir -p "$out/inputs"
 
 # Inputs made from the bundled sample: noise.nii.gz and constant.nii.gz on its grid (int16, header kept), and the
