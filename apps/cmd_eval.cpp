@@ -14,6 +14,7 @@
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/imaging/rasterize.h"
 #include "msk/segmentation/metrics.h"
 
 namespace fs = std::filesystem;
@@ -80,20 +81,51 @@ std::map<int32_t, std::string> labelNamesBeside(const std::string& labelMapPath)
   return names;
 }
 
+/// The row of a mesh scored against one label of a label map: the mesh rasterised on the map's grid (a voxel counts
+/// inside when its centre is), then compared voxel by voxel. `label` is --labels' one label, else the map's only one.
+Row meshAgainstLabelMap(const std::string& a, const std::string& b, const std::string& labelsText) {
+  const bool resultIsMesh = isMeshFile(a);
+  const std::string meshPath = resultIsMesh ? a : b, mapPath = resultIsMesh ? b : a;
+  const LabelMap map = readNifti<int32_t>(mapPath);
+  std::set<int32_t> present;
+  for (int32_t v : map.data)
+    if (v != 0) present.insert(v);
+  int32_t label = 0;
+  if (!labelsText.empty()) {
+    const std::vector<int32_t> given = parseLabels(labelsText);
+    if (given.size() != 1)
+      throw UsageError("a mesh against a label map: --labels takes one label, the mesh's structure in the map");
+    label = given[0];
+  } else if (present.size() == 1) {
+    label = *present.begin();
+  } else {
+    throw UsageError("a mesh against a label map of " + std::to_string(present.size()) +
+                     " labels: give --labels with the label of the mesh's structure");
+  }
+  if (!present.count(label)) throw IoError(mapPath, "has no voxel of label " + std::to_string(label));
+  const LabelMap meshMap = rasterize(readMesh(meshPath), map.grid);
+  const SegmentationMetrics m =
+      resultIsMesh ? labelMetrics(meshMap, 1, map, label) : labelMetrics(map, label, meshMap, 1);
+  const std::map<int32_t, std::string> names = labelNamesBeside(mapPath);
+  const auto named = names.find(label);
+  return {named != names.end() ? named->second : fs::path(meshPath).stem().string(), m, label};
+}
+
 }  // namespace
 
 int cmdEval(const std::vector<std::string>& argv) {
   CommandLine app(
       "eval",
-      "A and B are label maps on the same grid (.nii/.nii.gz) or two closed meshes "
-      "(.vtk .vtp .stl .obj .ply). Prints Dice, Jaccard, average symmetric surface distance (ASSD), HD95 and "
+      "A and B are label maps on the same grid (.nii/.nii.gz), two closed meshes (.vtk .vtp .stl .obj .ply), or a "
+      "mesh and a label map (the mesh rasterised on the map's grid, against one label: --labels L, or the map's only "
+      "label). Prints Dice, Jaccard, average symmetric surface distance (ASSD), HD95 and "
       "Hausdorff distance in mm (definitions in docs/measurements.md). Label maps: the labels named in the result's "
       "label table (labels.tsv beside it, as mskseg writes it; rows named after its objects), else every label of the "
       "reference, unless --labels.");
   std::string a, b, labelsText, jsonPath, csvPath;
   double voxel = 0.5;
   app.add_option("--result", a, "the segmentation (label map or mesh)")->required();
-  app.add_option("--reference", b, "the reference (same kind)")->required();
+  app.add_option("--reference", b, "the reference (label map or mesh)")->required();
   app.add_option("--labels", labelsText,
                  "labels to score, e.g. 1,2,3 (default: those of the result's labels.tsv, else every label of the "
                  "reference)");
@@ -104,9 +136,9 @@ int cmdEval(const std::vector<std::string>& argv) {
   if (!(voxel > 0.05 && voxel <= 10))
     throw ParameterError("--voxel", std::to_string(voxel), "must be in (0.05, 10] mm");
   std::vector<Row> rows;
-  if (isMeshFile(a) != isMeshFile(b))
-    throw UsageError("--result and --reference must both be meshes or both label maps");
-  if (isMeshFile(a)) {
+  if (isMeshFile(a) != isMeshFile(b)) {
+    rows.push_back(meshAgainstLabelMap(a, b, labelsText));
+  } else if (isMeshFile(a)) {
     rows.push_back({"mesh", meshMetrics(readMesh(a), readMesh(b), voxel)});
   } else {
     LabelMap la = readNifti<int32_t>(a), lb = readNifti<int32_t>(b);

@@ -194,6 +194,29 @@ TEST(Cli, PhantomRasterizeEvalPipeline) {
   ASSERT_EQ(mm.exitCode, 0) << mm.err;
   // stdout is the JSON alone (no table before it), so it pipes into a JSON reader.
   EXPECT_LT(msk::parseJson(mm.out).at("metrics")[0].at("assd_mm").get<double>(), 1e-3);
+
+  // A mesh against a label map, either way round: the truth mesh rasterised on the map's grid against label 1 matches
+  // the rasterised femur; label 1 is the femur; a map of several labels needs --labels, and one label only.
+  for (const bool meshFirst : {true, false}) {
+    const std::string mesh = out + "/truth_femur.vtk", map = out + "/labels.nii.gz";
+    CliResult ml = runCli({"eval", "--result", meshFirst ? mesh : map, "--reference", meshFirst ? map : mesh,
+                           "--labels", "1", "--json", "-"});
+    ASSERT_EQ(ml.exitCode, 0) << ml.err;
+    const msk::Json row = msk::parseJson(ml.out).at("metrics")[0];
+    EXPECT_GT(row.at("dice").get<double>(), 0.97) << meshFirst;
+    EXPECT_EQ(row.at("label").get<int>(), 1);
+  }
+  expectOneLineError(runCli({"eval", "--result", out + "/truth_femur.vtk", "--reference", out + "/labels.nii.gz"}), 2,
+                     "", "--labels");
+  expectOneLineError(
+      runCli({"eval", "--result", out + "/truth_femur.vtk", "--reference", out + "/labels.nii.gz", "--labels", "1,2"}),
+      2, "", "one label");
+  expectOneLineError(
+      runCli({"eval", "--result", out + "/truth_femur.vtk", "--reference", out + "/labels.nii.gz", "--labels", "99"}),
+      1, "labels.nii.gz", "no voxel of label 99");
+  // The same mesh against a map of the femur alone needs no --labels.
+  CliResult single = runCli({"eval", "--result", out + "/truth_femur.vtk", "--reference", dir.file("femur.nii.gz")});
+  EXPECT_EQ(single.exitCode, 0) << single.err;
 }
 
 TEST(Cli, AbsurdPhantomParametersLeaveNoOutput) {
