@@ -28,8 +28,8 @@ WORKFLOW_PACKAGES=(slurm-wlm munge snakemake)
 # ParaView's Python modules (paraview.simple, its own vtkmodules) are in python3-paraview, which Debian 12 declares in
 # conflict with python3-vtk9, a dependency of libvtk9-dev: both ship the Python package vtkmodules. So that mskseg's
 # build keeps libvtk9-dev, python3-paraview is unpacked (same version as paraview, not registered with dpkg) into
-# $PARAVIEW_PYTHON, which scripts/viewer-screenshot.sh puts first on pvbatch's PYTHONPATH. xvfb-run needs xauth.
-VIEWER_PACKAGES=(paraview xvfb xauth)
+# $PARAVIEW_PYTHON, which scripts/viewer-screenshot.sh puts first on pvbatch's PYTHONPATH.
+VIEWER_PACKAGES=(paraview xvfb)
 PARAVIEW_PYTHON=/opt/mskseg/python3-paraview
 viewers=0
 for group in "$@"; do
