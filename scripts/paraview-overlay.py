@@ -228,8 +228,8 @@ def main():
             rep.Position = position
         rep.FontSize = size
         rep.Color = [1.0, 1.0, 1.0]
-        rep.ShowBorder = "Always"  # draws the text's background box: dark, half transparent
-        rep.BackgroundColor = [0.0, 0.0, 0.0, 0.6]
+        rep.ShowBorder = "Always"  # draws the text's box: black, over the picture
+        rep.BackgroundColor = [0.0, 0.0, 0.0, 1.0]
         rep.BorderColor = [0.0, 0.0, 0.0]
 
     def side(vector):
@@ -281,12 +281,11 @@ def main():
         view.CameraPosition = [focus[a] - 1000.0 * direction[a] for a in range(3)]
         view.CameraViewUp = list(up)
         view.CameraParallelScale = scale
-        caption(view, "%s  %s = %.1f mm (%s)" % (title, "xyz"[axis], center[axis], image_space))
+        caption(view, "%s  %s = %.1f mm (%s), %s up" % (title, "xyz"[axis], center[axis], image_space, side(up)))
         right = [direction[1] * up[2] - direction[2] * up[1], direction[2] * up[0] - direction[0] * up[2],
                  direction[0] * up[1] - direction[1] * up[0]]
-        caption(view, side([-v for v in right]), "Any Location", [0.01, 0.5], 18)
-        caption(view, side(right), "Any Location", [0.97, 0.5], 18)
-        caption(view, side(up), "Upper Center", None, 18)
+        caption(view, side([-v for v in right]), "Any Location", [0.005, 0.5], 18)
+        caption(view, side(right), "Any Location", [0.955, 0.5], 18)
         views.append(view)
 
     # 3D: the axial slice, and on it each mesh's part above it (clipped by the same plane), seen from the front left
@@ -309,7 +308,7 @@ def main():
     distance = 2.2 * max(max(m[4][2 * a + 1] for m in meshes) - min(m[4][2 * a] for m in meshes) for a in range(3))
     camera.SetPosition(center[0] + 0.45 * distance, center[1] - 0.8 * distance, center[2] + 0.5 * distance)
     camera.SetViewAngle(30.0)
-    caption(view3d, "3D (%s): the axial slice, the meshes above it" % image_space)
+    caption(view3d, "3D (%s): axial slice, meshes above it" % image_space)
     bar = pv.GetScalarBar(lut, view3d)
     bar.Title = "structure"
     bar.ComponentTitle = ""

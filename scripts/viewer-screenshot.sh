@@ -47,7 +47,8 @@ if [ -z "${DISPLAY:-}" ]; then
     sleep 0.1
   done
   grep -q '^[0-9][0-9]*$' "$log.display" || fail "Xvfb did not start: $(tail -n 1 "$log.xvfb")"
-  export DISPLAY=":$(cat "$log.display")"
+  DISPLAY=":$(cat "$log.display")"
+  export DISPLAY
 fi
 
 start=$SECONDS
