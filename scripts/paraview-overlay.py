@@ -32,14 +32,14 @@ def fail(message):
     sys.exit(1)
 
 
-def parse_triple(text, what, kind):
-    """'a,b,c' as three numbers of `kind`, or a one-line error naming `what`."""
+def parse_numbers(text, option, names, kind):
+    """'a,b,...' as len(names) numbers of `kind`, or a one-line error naming the option and the form (e.g. X,Y,Z)."""
     try:
         values = [kind(v) for v in text.split(",")]
     except ValueError:
         values = []
-    if len(values) != (3 if what == "--center" else 2):
-        fail("%s: expected %s, got '%s'" % (what, "X,Y,Z" if what == "--center" else "W,H", text))
+    if len(values) != len(names):
+        fail("%s: expected %s, got '%s'" % (option, ",".join(names), text))
     return values
 
 
@@ -111,10 +111,10 @@ def main():
         fail("%s: no such folder" % out_dir)
     if not os.path.isfile(image_path):
         fail("%s: missing (run mskseg segment with --image-export vti)" % image_path)
-    size = parse_triple(args.size, "--size", int)
+    size = parse_numbers(args.size, "--size", "WH", int)
     if min(size) < 200 or max(size) > 8000:
         fail("--size: each side must be 200..8000 pixels, got %s" % args.size)
-    center = parse_triple(args.center, "--center", float) if args.center else None
+    center = parse_numbers(args.center, "--center", "XYZ", float) if args.center else None
 
     structures = [s for s in read_structures(out_dir) if os.path.isfile(os.path.join(out_dir, s[1] + ".vtk"))]
     if not structures:
@@ -193,8 +193,8 @@ def main():
         info = cut.GetDataInformation()
         b = info.GetBounds()
         if info.GetNumberOfPoints() == 0:
-            fail("the plane %s = %.1f mm misses image.vti (bounds %s)" % ("xyz"[axis], center[axis],
-                                                                            [round(v, 1) for v in lo + hi]))
+            fail("the plane %s = %.1f mm misses image.vti (%s)" % (
+                "xyz"[axis], center[axis], ", ".join("%s %.1f..%.1f" % ("xyz"[a], lo[a], hi[a]) for a in range(3))))
         if any(b[2 * a] < lo[a] - tolerance or b[2 * a + 1] > hi[a] + tolerance for a in range(3)):
             fail("ParaView placed the slice of image.vti outside its physical bounds (direction matrix not applied)")
         return cut
