@@ -43,9 +43,11 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
       item.hi[a] = hi[a];
     }
     item.triangle = t;
+    const Eigen::Vector3i first = cellOf(lo);
+    for (int a = 0; a < 3; ++a) item.cell[a] = first[a];
   }
   auto forCells = [&](const CellItem& item, auto&& visit) {
-    const Eigen::Vector3i a = cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2]));
+    const Eigen::Vector3i a(item.cell[0], item.cell[1], item.cell[2]);
     const Eigen::Vector3i b = cellOf(Eigen::Vector3d(item.hi[0], item.hi[1], item.hi[2]));
     for (int z = a[2]; z <= b[2]; ++z)
       for (int y = a[1]; y <= b[1]; ++y)
@@ -76,6 +78,11 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
         const size_t ci = cellIndex(x, y, z);
         for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
           const CellItem& item = items_[static_cast<size_t>(k)];
+          // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does
+          // not depend on the order: the closest wins, then the lowest key).
+          if (std::max(item.cell[0], from[0]) != x || std::max(item.cell[1], from[1]) != y ||
+              std::max(item.cell[2], from[2]) != z)
+            continue;
           // Cheap rejection: the triangle's box is already farther than the best found.
           double boxSq = 0;
           for (int a = 0; a < 3; ++a) {
@@ -91,7 +98,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
           if (!(d <= best.distance)) continue;
           // Where the block scan meets t first: its first cell in the block (the box's lowest corner), then t.
           const Eigen::Vector3i first =
-              cellOf(Eigen::Vector3d(item.lo[0], item.lo[1], item.lo[2])).cwiseMax(c - Eigen::Vector3i::Ones());
+              Eigen::Vector3i(item.cell[0], item.cell[1], item.cell[2]).cwiseMax(c - Eigen::Vector3i::Ones());
           const size_t key =
               cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;

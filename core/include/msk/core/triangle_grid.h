@@ -55,6 +55,7 @@ class TriangleGrid {
   struct CellItem {
     double lo[3], hi[3];
     int triangle;
+    int cell[3];  ///< the cell of the box's lowest corner (its first cell in every scan)
   };
   Layout layout_;
   int triangles_ = 0;
