@@ -1,11 +1,8 @@
 // One pass's particle system: every object's particles stacked (tets, surface; then the medial axes), masses, sets and
 // the collision sets of the scene's pairs.
 #include <algorithm>
-#include <atomic>
-#include <exception>
-#include <mutex>
-#include <thread>
 
+#include "parallel_each.h"
 #include "segment_stages.h"
 
 namespace msk::detail {
@@ -16,31 +13,7 @@ namespace {
 /// partner surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all
 /// cores) with the same result as one.
 void detectAll(std::vector<std::unique_ptr<CollisionConstraints>>& sets, const Points& p, bool sideTest, int threads) {
-  const size_t n = sets.size();
-  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
-  const size_t workers = std::min(n, threads > 0 ? static_cast<size_t>(threads) : cores);
-  if (workers <= 1) {
-    for (auto& c : sets) c->detect(p, sideTest);
-    return;
-  }
-  std::atomic<size_t> next{0};
-  std::exception_ptr failure;
-  std::mutex failureMutex;
-  auto work = [&]() {
-    for (size_t k = next++; k < n; k = next++) {
-      try {
-        sets[k]->detect(p, sideTest);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(failureMutex);
-        if (!failure) failure = std::current_exception();
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < workers; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
+  parallelEach(sets.size(), threads, [&](size_t k) { sets[k]->detect(p, sideTest); });
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <string>
 
 #include "msk/core/error.h"
+#include "parallel_each.h"
 #include "segment_stages.h"
 
 namespace msk::detail {
@@ -31,15 +32,17 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
       windowStep = s;
     }
     const double runFraction = std::min(1.0, static_cast<double>(stepsDone) / std::max(1, rampSteps - 1));
-    for (size_t i = 0; i < objs.size(); ++i) {
-      if (fixed[i]) continue;
+    // Each object's image search reads the shared image features and writes only its own targets: on the run's
+    // threads, the same for any number of them.
+    parallelEach(objs.size(), opts.evolution.threads, [&](size_t i) {
+      if (fixed[i]) return;
       ObjectState& st = objs[i];
       if (st.prior) st.prior->setLambda(shape.priorStart + (shape.priorEnd - shape.priorStart) * runFraction);
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
       const ImageTargets found = imageTargets(st, st.current, opts, feat, grid, focus);
       st.targets->setTargets(found.targets, found.weights);
       st.residual = found.residual;
-    }
+    });
     // The side test (winding number) on the first step of a level and every few steps after it, so that a vertex
     // that got through a partner is found and pushed back out the right way.
     const auto tc = Clock::now();

@@ -321,8 +321,9 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   EXPECT_EQ(msk::closedMeshProblem(o.mesh), "");
 }
 
-// Collision detection runs its sets on --threads threads; the result is the same as on one.
-TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
+// Collision detection (its sets) and the image search (its objects) run on --threads threads; the result is the same
+// as on one, bit for bit, for two threads and for more threads than objects.
+TEST(Segmenter, ThreadsGiveIdenticalMeshes) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const msk::ImageF img =
       msk::test::ellipsoidImage(g, Eigen::Vector3d(-9, 0, 0), Eigen::Vector3d(10, 12, 12), 900.f, 100.f);
@@ -336,13 +337,17 @@ TEST(Segmenter, CollisionDetectionThreadsGiveIdenticalMeshes) {
   pair.a = 0;
   pair.b = 1;
   scene.collisions.push_back(pair);
-  msk::SegmentOptions one, two;
-  two.evolution.threads = 2;
-  const msk::SegmentationResult a = msk::segmentScene(img, scene, one), b = msk::segmentScene(img, scene, two);
+  msk::SegmentOptions one;
+  const msk::SegmentationResult a = msk::segmentScene(img, scene, one);
   ASSERT_EQ(a.collisionSetsBuilt, 2 * a.settings.levels);
-  for (size_t i = 0; i < 2; ++i)
-    EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
-  EXPECT_EQ(a.overlapVoxels, b.overlapVoxels);
+  for (int threads : {2, 5}) {
+    msk::SegmentOptions more;
+    more.evolution.threads = threads;
+    const msk::SegmentationResult b = msk::segmentScene(img, scene, more);
+    for (size_t i = 0; i < 2; ++i)
+      EXPECT_EQ((a.objects[i].mesh.vertices - b.objects[i].mesh.vertices).cwiseAbs().maxCoeff(), 0.0) << threads;
+    EXPECT_EQ(a.overlapVoxels, b.overlapVoxels);
+  }
 }
 
 // The refinement pass (object model "refine"): a template whose shape differs from the object's (an ellipsoid for a

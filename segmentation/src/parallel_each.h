@@ -1,0 +1,44 @@
+#pragma once
+// Independent items run on several threads: each item's work reads shared inputs and writes only its own outputs, so
+// the result is the same for any number of threads.
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace msk::detail {
+
+/// Calls work(k) for every k in [0, n) on `threads` threads (0 = all cores; the caller is one of them), handing the
+/// items out one at a time. The first exception thrown by an item is rethrown once all threads have stopped.
+template <typename Work>
+void parallelEach(size_t n, int threads, Work&& work) {
+  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
+  const size_t workers = std::min(n, threads > 0 ? static_cast<size_t>(threads) : cores);
+  if (workers <= 1) {
+    for (size_t k = 0; k < n; ++k) work(k);
+    return;
+  }
+  std::atomic<size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex failureMutex;
+  auto loop = [&]() {
+    for (size_t k = next++; k < n; k = next++) {
+      try {
+        work(k);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(failureMutex);
+        if (!failure) failure = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < workers; ++t) pool.emplace_back(loop);
+  loop();
+  for (auto& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+}
+
+}  // namespace msk::detail
