@@ -113,7 +113,9 @@ int LevelSystem::assemble(const Scene& scene, const std::vector<PairContact>& co
 }
 
 void LevelSystem::detectContacts(const Points& p, bool sideTest, int threads) {
-  for (auto& kv : surfaces_) kv.second->update(p);
+  std::vector<CollisionSurface*> surfaces;
+  for (auto& kv : surfaces_) surfaces.push_back(kv.second.get());
+  parallelEach(surfaces.size(), threads, [&](size_t k) { surfaces[k]->update(p); });
   detectAll(collide_, p, sideTest, threads);
 }
 
