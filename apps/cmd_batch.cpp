@@ -27,6 +27,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "batch_bids.h"
@@ -54,8 +55,10 @@ std::string isoTime(std::time_t t) {
   return buf;
 }
 
-/// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid.
-pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded) {
+/// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid. Unless
+/// the options after -- set --threads, each case gets an equal share of the cores among the `jobs` cases run at once
+/// (results do not depend on it, so it is not part of the case's fingerprint).
+pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded, int jobs) {
   std::vector<std::string> args = {exe, "segment", "--image", c.image, "--out", c.out};
   if (c.atlas.empty()) {
     args.insert(args.end(), {"--scene", c.scene});
@@ -64,6 +67,13 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
   }
   if (!c.reference.empty()) args.insert(args.end(), {"--qc-reference", c.reference});  // drawn in its QC pictures
   args.insert(args.end(), forwarded.begin(), forwarded.end());
+  const bool threadsGiven = std::any_of(forwarded.begin(), forwarded.end(), [](const std::string& a) {
+    return a == "--threads" || a.rfind("--threads=", 0) == 0;
+  });
+  if (!threadsGiven) {
+    const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    args.insert(args.end(), {"--threads", std::to_string(std::max(1, cores / std::max(1, jobs)))});
+  }
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
   cargs.push_back(nullptr);
@@ -385,7 +395,7 @@ int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vecto
       }
       if (c.bids) fs::remove_all(c.out, ec);  // what a batch killed while publishing left
       fs::remove(exitCodePath(b, c), ec);
-      running[startCase(exe, c, b.forwarded)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
+      running[startCase(exe, c, b.forwarded, b.jobs)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
     }
     if (running.empty()) break;
     int status = 0;

@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "commands.h"
 #include "msk/core/atomic_file.h"
@@ -250,7 +251,7 @@ SlicerModule segmentModule() {
   p.tag = "boolean", p.option = "--no-qc", p.label = "No QC pictures", p.defaultValue = "false";
   run.parameters.push_back(p);
   p = {};
-  p.tag = "integer", p.option = "--threads", p.label = "Threads (0: all cores)", p.defaultValue = "1",
+  p.tag = "integer", p.option = "--threads", p.label = "Threads (0: all cores)", p.defaultValue = "0",
   p.hasRange = true, p.minimum = 0, p.maximum = 256, p.step = 1;
   run.parameters.push_back(p);
   m.groups.push_back(run);
@@ -317,6 +318,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
                  "also every object's surface in this one mesh file (.vtk .vtp .stl .obj .ply), point data \"label\" "
                  "holding each object's label");
   SegmentOptions opts;
+  opts.evolution.threads = 0;  // all cores unless --threads says otherwise
   SegmentOutputs outputs;
   addSegmentOptions(app, opts, outputs);
   addProgressTagsOption(app);
@@ -342,6 +344,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto" || !initTransform.empty()))
     throw UsageError("--metric, --init-transform, --no-register and --no-object-register need --atlas");
   checkSegmentOptions(opts);
+  if (opts.evolution.threads == 0)  // the report names the number used
+    opts.evolution.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (!out.empty()) checkOutputFolder(out);
   if (!labelMapPath.empty()) checkOutputFile(labelMapPath);
   if (!surfacesPath.empty()) checkOutputFile(surfacesPath);

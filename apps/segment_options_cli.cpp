@@ -40,8 +40,9 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   app.add_option("--iterations", o.evolution.iterations, "projection sweeps per substep, >= 1 (default: the scheme's)")
       ->check(positive);
   app.add_option("--threads", o.evolution.threads,
-                 "threads of the coloured, Jacobi and CG schemes and of collision detection (0: all cores; default "
-                 "1); results do not depend on it");
+                 "threads of the image search, collision detection, the output separation and the coloured, Jacobi and "
+                 "CG schemes (0: all cores; default: all cores in segment, a share of them per case in batch); results "
+                 "do not depend on it");
   addNumber(app, "--internal-stiffness", o.shape.internalStiffness, "gamma of the shape memory, [0, 1] (default 1)");
   addNumber(app, "--image-stiffness", o.image.stiffness, "gamma of the image targets, [0, 1] (default 0.25)");
   app.add_option_function<std::string>(

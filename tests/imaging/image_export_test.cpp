@@ -41,7 +41,7 @@ TEST(ImageExport, VtiKeepsTheWorldPlacementInEitherSpace) {
     const msk::ImageF back = msk::readVtkImage(path);
     ASSERT_EQ(back.grid.dims, img.grid.dims);
     EXPECT_TRUE(back.grid.spacing.isApprox(img.grid.spacing, 1e-6));
-    for (const Eigen::Vector3d ijk : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(6, 4, 3), Eigen::Vector3d(2, 3, 1)})
+    for (const Eigen::Vector3d& ijk : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(6, 4, 3), Eigen::Vector3d(2, 3, 1)})
       EXPECT_LT((back.grid.toWorld(ijk) - img.grid.toWorld(ijk)).norm(), 1e-4) << ijk.transpose();
     EXPECT_EQ(back.data, img.data);
   }
