@@ -413,18 +413,32 @@ std::optional<double> ImageFeatures::sample(const Eigen::Vector3d& worldMm) cons
 
 ImageFeatures computeImageFeatures(const ImageF& image, double sigmaMm) {
   requireNonNegative("sigmaMm", sigmaMm);
+  return featuresOfNormalised(normalisedForFeatures(image), sigmaMm);
+}
+
+ImageF normalisedForFeatures(const ImageF& image) {
   // Robust normalisation (1–99 %) so scores compare across MRI and CT. Images that are constant between those
   // percentiles (tiny objects) fall back to min–max; a constant image becomes all zeros (no edges, no forces).
-  ImageF normalised;
-  if (percentile(image, 99.0) > percentile(image, 1.0)) {
-    normalised = normalizeIntensity(image, 1.0, 99.0);
-  } else if (percentile(image, 100.0) > percentile(image, 0.0)) {
-    normalised = normalizeIntensity(image, 0.0, 100.0);
+  // (normalizeIntensity()'s mapping, each percentile computed once.)
+  const std::vector<double> values(image.data.begin(), image.data.end());
+  double lo = percentile(values, 1.0), hi = percentile(values, 99.0);
+  if (!(hi > lo)) {
+    lo = percentile(values, 0.0);
+    hi = percentile(values, 100.0);
+  }
+  ImageF normalised = image;
+  if (hi > lo) {
+    const double scale = 1.0 / (hi - lo);
+    for (float& v : normalised.data) v = static_cast<float>((v - lo) * scale);
   } else {
-    normalised = image;
     for (float& v : normalised.data)
       if (std::isfinite(v)) v = 0.f;
   }
+  return normalised;
+}
+
+ImageFeatures featuresOfNormalised(const ImageF& normalised, double sigmaMm) {
+  requireNonNegative("sigmaMm", sigmaMm);
   ImageFeatures f;
   f.sigmaMm = sigmaMm;
   f.smoothed = gaussianSmooth(normalised, sigmaMm);

@@ -9,6 +9,7 @@
 #include "msk/imaging/surface_extraction.h"
 #include "msk/segmentation/surface_quality.h"
 #include "msk/segmentation/tetrahedralize.h"
+#include "parallel_each.h"
 #include "segment_stages.h"
 
 namespace msk::detail {
@@ -17,11 +18,38 @@ const ImageFeatures& FeatureCache::at(double sigmaMm) {
   const long key = std::lround(sigmaMm * 1000.0);
   auto it = cache_.find(key);
   if (it == cache_.end()) {
+    const ImageF& source = normalised();
     const auto t0 = Clock::now();
-    it = cache_.emplace(key, computeImageFeatures(image_, sigmaMm)).first;
+    it = cache_.emplace(key, featuresOfNormalised(source, sigmaMm)).first;
     seconds_ += since(t0);
   }
   return it->second;
+}
+
+const ImageF& FeatureCache::normalised() {
+  if (!normalised_) {
+    const auto t0 = Clock::now();
+    normalised_ = normalisedForFeatures(image_);
+    seconds_ += since(t0);
+  }
+  return *normalised_;
+}
+
+void FeatureCache::prepare(const std::vector<double>& sigmasMm, int threads) {
+  std::vector<double> missing;
+  for (double s : sigmasMm) {
+    const long key = std::lround(s * 1000.0);
+    if (!cache_.count(key) &&
+        std::none_of(missing.begin(), missing.end(), [&](double m) { return std::lround(m * 1000.0) == key; }))
+      missing.push_back(s);
+  }
+  if (missing.empty()) return;
+  const ImageF& source = normalised();
+  const auto t0 = Clock::now();
+  std::vector<ImageFeatures> computed(missing.size());
+  parallelEach(missing.size(), threads, [&](size_t k) { computed[k] = featuresOfNormalised(source, missing[k]); });
+  for (size_t k = 0; k < missing.size(); ++k) cache_.emplace(std::lround(missing[k] * 1000.0), std::move(computed[k]));
+  seconds_ += since(t0);
 }
 
 double defaultProximityMm(const SegmentOptions& opts, const Grid& grid) {

@@ -31,13 +31,18 @@ class FeatureCache {
   explicit FeatureCache(const ImageF& image) : image_(image) {}
   /// The features at scale σ (mm), computed the first time this scale is asked for.
   const ImageFeatures& at(double sigmaMm);
+  /// Computes the scales `sigmasMm` not computed yet, each on one of `threads` threads (0 = all cores).
+  void prepare(const std::vector<double>& sigmasMm, int threads);
   /// Distinct scales computed.
   int built() const { return static_cast<int>(cache_.size()); }
   /// Time spent computing them, s.
   double seconds() const { return seconds_; }
 
  private:
+  /// The normalised image every scale is smoothed from, made on first use.
+  const ImageF& normalised();
   const ImageF& image_;
+  std::optional<ImageF> normalised_;
   std::map<long, ImageFeatures> cache_;
   double seconds_ = 0;
 };

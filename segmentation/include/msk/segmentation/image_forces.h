@@ -21,8 +21,16 @@ struct ImageFeatures {
   std::optional<double> sample(const Eigen::Vector3d& worldMm) const;
 };
 
-/// Builds the features of `image` at scale `sigmaMm` (Gaussian smoothing in mm).
+/// Builds the features of `image` at scale `sigmaMm` (Gaussian smoothing in mm): featuresOfNormalised() of
+/// normalisedForFeatures().
 ImageFeatures computeImageFeatures(const ImageF& image, double sigmaMm);
+
+/// The intensities the features are built on, the same at every scale: the 1–99 % range mapped to [0, 1] (min–max if
+/// that range is a single value; all zeros for a constant image), so scores compare across MRI and CT.
+ImageF normalisedForFeatures(const ImageF& image);
+
+/// The features at scale `sigmaMm` of an image normalised by normalisedForFeatures().
+ImageFeatures featuresOfNormalised(const ImageF& normalised, double sigmaMm);
 
 /// Edge polarity along the outward normal.
 enum class Polarity {
