@@ -110,7 +110,9 @@ TEST(Segmenter, ConvergedMeansTheSurfaceHasSettled) {
   const msk::SegmentationResult full = msk::segmentScene(img, scene, msk::SegmentOptions{});
   for (const msk::LevelReport& l : full.objects[0].levels) {
     EXPECT_TRUE(l.converged) << "drift " << l.driftMmPerStep << " mm/step";
-    if (!l.stoppedOnTolerance) EXPECT_LT(l.driftMmPerStep, l.settleToleranceMm);
+    if (!l.stoppedOnTolerance) {
+      EXPECT_LT(l.driftMmPerStep, l.settleToleranceMm);
+    }
     EXPECT_DOUBLE_EQ(l.settleToleranceMm, full.settings.toleranceMm);
   }
   msk::SegmentOptions cut;
