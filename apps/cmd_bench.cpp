@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "msk/bench/scaling_bench.h"
 #include "msk/bench/scene_bench.h"
 #include "msk/bench/tradeoff_bench.h"
 #include "msk/phantom/multi_phantom.h"
@@ -57,6 +58,43 @@ int benchScene(CLI::App& app, const std::vector<std::string>& argv) {
   return 0;
 }
 
+int benchScaling(CLI::App& app, const std::vector<std::string>& argv) {
+  ScalingBenchOptions o;
+  o.segment.evolution.quality = Quality::Fast;
+  o.phantom.meshVertices = 1500;
+  std::string out, quality = "fast";
+  app.add_option("--subdivisions", o.subdivisions,
+                 "runs with the templates subdivided 0..N times (x4 vertices each), 0..5 (default 3: about 1.2e4 to "
+                 "7.7e5 simplex vertices)");
+  app.add_option("--quality", quality, "segmentation preset (default fast)")
+      ->check(CLI::IsMember({"fast", "balanced", "accurate"}));
+  app.add_option("--vertices", o.phantom.meshVertices, "vertices of each template before subdivision (default 1500)");
+  app.add_option("--seed", o.phantom.seed, "phantom seed (default 1)");
+  app.add_option("--threads", o.segment.evolution.threads, "threads of the run (default 1; 0 = all cores)");
+  app.add_option("--out", out, "also write scaling.csv and scaling.png into DIR, atomically");
+  app.footer(
+      "The bundled thigh's anatomy (the 4-structure phantom) segmented at each resolution; prints each stage's seconds "
+      "over the run's vertex-steps (simplex vertices x steps, summed over objects and levels; the separation, done "
+      "once, divided the same way), the peak memory per vertex and the mean Dice, and how the evolution's cost per "
+      "vertex-step at the largest size compares with the smallest (1x: linear growth).");
+  if (!parseArgs(app, argv)) return 0;
+  o.segment.evolution.quality = parseQuality(quality);
+  checkPhantomOptions(o.phantom);
+  checkSegmentOptions(o.segment);
+  if (o.subdivisions < 0 || o.subdivisions > 5)
+    throw ParameterError("--subdivisions", std::to_string(o.subdivisions), "must be 0..5");
+  if (!out.empty()) checkOutputFolder(out);
+  const std::vector<ScalingPoint> points = runScalingBench(o, stderrProgress("bench scaling"));
+  printScalingBench(points);
+  if (!out.empty()) {
+    const std::string title = "mskseg bench scaling: thigh phantom, " + quality + ", " +
+                              std::to_string(o.segment.evolution.threads) + " thread(s)";
+    writeFolderAtomically(out, [&](const std::string& staging) { writeScalingBench(staging, points, title); });
+    std::cout << "written " << out << "/scaling.csv and " << out << "/scaling.png\n";
+  }
+  return 0;
+}
+
 int benchTradeoff(CLI::App& app, const std::vector<std::string>& argv) {
   int phantoms = 0, threads = 1;
   long seed = 1;
@@ -103,13 +141,17 @@ int cmdBench(const std::vector<std::string>& argv) {
         "mean-anatomy templates with the scene's collision pairs and prints the time per stage, the projection time "
         "per constraint family, the peak memory, per-object Dice and ASSD against the exact labels and truth meshes, "
         "overlapping voxels and per-pair penetration."}},
+      {"scaling",
+       {benchScaling,
+        "How the cost grows with resolution: the thigh phantom segmented from its templates subdivided 0..N times; "
+        "time per stage per vertex and step, peak memory per vertex, a plot."}},
       {"tradeoff",
        {benchTradeoff,
         "The speed/accuracy trade: generates N thigh phantoms (seeds S..S+N-1, voxel size and grid obliquity varied), "
         "segments the femur of each from its mean template with every scheme (on the balanced schedule) and every "
         "preset, each run in a child process, and writes the figures into OUT."}},
   };
-  if (argv.empty()) throw UsageError("missing benchmark name (one of: scene, tradeoff)");
+  if (argv.empty()) throw UsageError("missing benchmark name (one of: scaling, scene, tradeoff)");
   if (argv[0] == "--help" || argv[0] == "-h" || argv[0] == "help") {
     std::cout << "Usage: mskseg bench <benchmark> [OPTIONS]   (mskseg bench <benchmark> --help for its options)\n\n"
                  "Benchmarks:\n";
@@ -117,7 +159,8 @@ int cmdBench(const std::vector<std::string>& argv) {
     return 0;
   }
   const auto it = benchmarks.find(argv[0]);
-  if (it == benchmarks.end()) throw UsageError("unknown benchmark '" + argv[0] + "' (one of: scene, tradeoff)");
+  if (it == benchmarks.end())
+    throw UsageError("unknown benchmark '" + argv[0] + "' (one of: scaling, scene, tradeoff)");
   CommandLine app("bench " + it->first, it->second.description);
   return it->second.run(app, std::vector<std::string>(argv.begin() + 1, argv.end()));
 }

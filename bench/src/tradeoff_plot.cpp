@@ -9,24 +9,14 @@
 
 #include "msk/core/error.h"
 #include "msk/segmentation/png_file.h"
+#include "plot_drawing.h"
 
 namespace msk {
 
 namespace {
 bool usable(const TradeoffPoint& p) { return std::isfinite(p.seconds) && p.seconds > 0 && std::isfinite(p.error); }
-
-// A "nice" tick step (1, 2 or 5 × 10^k) giving about `count` ticks over `span`.
-double tickStep(double span, int count) {
-  const double raw = span / std::max(1, count);
-  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
-  for (double m : {1.0, 2.0, 5.0})
-    if (m * mag >= raw) return m * mag;
-  return 10.0 * mag;
-}
-
-void text(cv::Mat& pic, const std::string& s, cv::Point at, double scale = 0.45, cv::Scalar colour = {0, 0, 0}) {
-  cv::putText(pic, s, at, cv::FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv::LINE_AA);
-}
+using plot::text;
+using plot::tickStep;
 }  // namespace
 
 std::vector<size_t> paretoFront(const std::vector<TradeoffPoint>& points) {
