@@ -58,6 +58,8 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   items_.resize(static_cast<size_t>(start_[cells]));
   std::vector<int> fill(start_.begin(), start_.end() - 1);
   for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { items_[static_cast<size_t>(fill[ci]++)] = item; });
+  itemCells_.resize(items_.size());
+  for (size_t k = 0; k < items_.size(); ++k) itemCells_[k] = {items_[k].cell[0], items_[k].cell[1], items_[k].cell[2]};
 }
 
 SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q,
@@ -77,12 +79,13 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
       for (int x = from[0]; x <= to[0]; ++x) {
         const size_t ci = cellIndex(x, y, z);
         for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
-          const CellItem& item = items_[static_cast<size_t>(k)];
           // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does
           // not depend on the order: the closest wins, then the lowest key).
-          if (std::max(item.cell[0], from[0]) != x || std::max(item.cell[1], from[1]) != y ||
-              std::max(item.cell[2], from[2]) != z)
+          const std::array<int, 3>& lowest = itemCells_[static_cast<size_t>(k)];
+          if (std::max(lowest[0], from[0]) != x || std::max(lowest[1], from[1]) != y ||
+              std::max(lowest[2], from[2]) != z)
             continue;
+          const CellItem& item = items_[static_cast<size_t>(k)];
           // Cheap rejection: the triangle's box is already farther than the best found.
           double boxSq = 0;
           for (int a = 0; a < 3; ++a) {

@@ -2,6 +2,7 @@
 /// Closest points on a triangle mesh through a uniform grid over its faces' bounding boxes: the search structure of
 /// collision partners (a bounded query, rebuilt every step) and of surface transfers (an unbounded query).
 #include <Eigen/Core>
+#include <array>
 #include <vector>
 
 #include "msk/core/triangle_mesh.h"
@@ -59,8 +60,10 @@ class TriangleGrid {
   };
   Layout layout_;
   int triangles_ = 0;
-  std::vector<int> start_;         ///< cell → its range of items_ (CSR)
-  std::vector<CellItem> items_;    ///< each cell's triangles, by index
+  std::vector<int> start_;       ///< cell → its range of items_ (CSR)
+  std::vector<CellItem> items_;  ///< each cell's triangles, by index
+  /// items_[k].cell, apart: a query's test of whether it meets a triangle in its first scanned cell reads only these
+  std::vector<std::array<int, 3>> itemCells_;
   std::vector<CellItem> boxes_;    ///< build(): each triangle's box (kept to reuse its memory on the next build)
   mutable std::vector<int> seen_;  ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
