@@ -4,9 +4,11 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
+#include "parallel_each.h"
 
 namespace msk {
 
@@ -541,42 +543,51 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
   TargetSearchResult out;
   out.offsets = Eigen::VectorXd::Zero(nv);
   out.scores = Eigen::VectorXd::Zero(nv);
-  LineSampler sampler(features.smoothed);
   const bool focusing = focus && !profileMode && focus->sigmaMm < features.sigmaMm;
-  LineSampler fineSampler(focusing ? focus->smoothed : features.smoothed);
-  SearchScratch scratch;
-  Eigen::Vector3d n;
-  for (Eigen::Index v = 0; v < nv; ++v) {
-    if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
-    sampler.setLine(positions.row(v).transpose(), n);
-    VertexTarget t;
-    if (profileMode) {
-      const Eigen::Index len = profiles->profiles.cols();
-      scratch.profile.resize(static_cast<size_t>(len));
-      for (Eigen::Index i = 0; i < len; ++i) scratch.profile[i] = profiles->profiles(v, i);  // rows not contiguous
-      t = profileSearch(sampler, r, scratch.profile.data(), profiles->halfSamples, opts.distancePenalty, scratch);
-    } else {
-      // Lobe half-width: the voxel's extent along n (support of the interpolated partial-volume edge) plus the
-      // smoothing's ±2σ.
-      const Eigen::Vector3d nVoxel = features.smoothed.grid.direction.transpose() * n;
-      const double footprintMm = features.smoothed.grid.spacing.dot(nVoxel.cwiseAbs());
-      const double lobeMm = std::max(footprintMm + 2 * features.sigmaMm, 2 * r.stepMm);
-      t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, opts.edgeLevel, scratch);
-      if (focusing && t.score > 0) {
-        fineSampler.setLine(positions.row(v).transpose(), n);
-        const double fineLobeMm = std::max(footprintMm + 2 * focus->sigmaMm, 2 * r.stepMm);
-        t = focusEdge(fineSampler, t, r, sign, opts.distancePenalty, features.sigmaMm + footprintMm, fineLobeMm,
-                      opts.edgeLevel, scratch);
+  // The vertices in one contiguous range per thread, each with its own samplers and scratch.
+  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
+  const size_t ranges = std::max<size_t>(
+      1, std::min<size_t>(opts.threads > 0 ? static_cast<size_t>(opts.threads) : cores, static_cast<size_t>(nv) / 256));
+  detail::parallelEach(ranges, static_cast<int>(ranges), [&](size_t k) {
+    LineSampler sampler(features.smoothed);
+    LineSampler fineSampler(focusing ? focus->smoothed : features.smoothed);
+    SearchScratch scratch;
+    Eigen::Vector3d n;
+    const Eigen::Index begin = static_cast<Eigen::Index>(k) * nv / static_cast<Eigen::Index>(ranges);
+    const Eigen::Index end = static_cast<Eigen::Index>(k + 1) * nv / static_cast<Eigen::Index>(ranges);
+    for (Eigen::Index v = begin; v < end; ++v) {
+      if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
+      sampler.setLine(positions.row(v).transpose(), n);
+      VertexTarget t;
+      if (profileMode) {
+        const Eigen::Index len = profiles->profiles.cols();
+        scratch.profile.resize(static_cast<size_t>(len));
+        for (Eigen::Index i = 0; i < len; ++i) scratch.profile[i] = profiles->profiles(v, i);  // rows not contiguous
+        t = profileSearch(sampler, r, scratch.profile.data(), profiles->halfSamples, opts.distancePenalty, scratch);
+      } else {
+        // Lobe half-width: the voxel's extent along n (support of the interpolated partial-volume edge) plus the
+        // smoothing's ±2σ.
+        const Eigen::Vector3d nVoxel = features.smoothed.grid.direction.transpose() * n;
+        const double footprintMm = features.smoothed.grid.spacing.dot(nVoxel.cwiseAbs());
+        const double lobeMm = std::max(footprintMm + 2 * features.sigmaMm, 2 * r.stepMm);
+        t = gradientSearch(sampler, r, sign, opts.distancePenalty, lobeMm, opts.edgeLevel, scratch);
+        if (focusing && t.score > 0) {
+          fineSampler.setLine(positions.row(v).transpose(), n);
+          const double fineLobeMm = std::max(footprintMm + 2 * focus->sigmaMm, 2 * r.stepMm);
+          t = focusEdge(fineSampler, t, r, sign, opts.distancePenalty, features.sigmaMm + footprintMm, fineLobeMm,
+                        opts.edgeLevel, scratch);
+        }
+      }
+      if (t.score > 0 && std::isfinite(t.offsetMm)) {
+        out.offsets[v] = t.offsetMm;
+        out.scores[v] = t.score;
       }
     }
-    if (t.score > 0 && std::isfinite(t.offsetMm)) {
-      out.offsets[v] = t.offsetMm;
-      out.scores[v] = t.score;
-    }
-  }
+  });
   out.residual = out.offsets.cwiseAbs();
   if (regularise) regulariseOffsets(out.offsets, out.scores, neighbors, opts.regularisationRings);
   out.targets = positions;
+  Eigen::Vector3d n;
   for (Eigen::Index v = 0; v < nv; ++v)
     if (out.scores[v] > 0 && unitNormal(normals, v, n)) out.targets.row(v) += out.offsets[v] * n.transpose();
   return out;

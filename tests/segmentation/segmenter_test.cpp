@@ -323,8 +323,9 @@ TEST(Segmenter, VolumeModelKeepsTheVolumeWhileTheImageMovesIt) {
   EXPECT_EQ(msk::closedMeshProblem(o.mesh), "");
 }
 
-// Collision detection (its sets) and the image search (its objects) run on --threads threads; the result is the same
-// as on one, bit for bit, for two threads and for more threads than objects.
+// Collision detection (its sets) and the image search (its objects, and ranges of an object's vertices with the
+// threads the objects leave free) run on --threads threads; the result is the same as on one, bit for bit, for two
+// threads and for more threads than objects (5 threads, 2 objects: each object's search on 2).
 TEST(Segmenter, ThreadsGiveIdenticalMeshes) {
   const msk::Grid g = cubeGrid(1.0, 30);
   const msk::ImageF img =

@@ -60,6 +60,9 @@ struct TargetSearchOptions {
   /// Gradient mode: when finite, an edge counts only if the smoothed (normalised) intensity crosses this level across
   /// it, from the inside's side to the outside's (estimateEdgeLevel); NaN: every edge of the right polarity counts.
   double edgeLevel = std::numeric_limits<double>::quiet_NaN();
+  /// Threads the vertices are searched on (0 = all cores); each vertex's target is its own, so the result is the same
+  /// for any number.
+  int threads = 1;
 };
 
 /// Per-vertex intensity profiles learned on the template's initial position (Profile mode).
