@@ -15,47 +15,23 @@ SlicerModule atlasModule() {
   m.description =
       "Builds an atlas folder for mskseg segment from a subject's image and its label map: the reference image, a "
       "template surface per structure and the scene.";
-  SlicerGroup io{"Input and output", "The reference subject and the atlas folder written.", false, {}};
-  SlicerParameter p;
-  p.tag = "image", p.option = "--image", p.label = "Reference volume", p.imageType = "scalar",
-  p.fileExtensions = ".nii.gz";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "image", p.option = "--labels", p.label = "Its label map", p.imageType = "label",
-  p.fileExtensions = ".nii.gz";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "string", p.option = "--objects", p.label = "Structures (NAME:LABEL:KIND,...)";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "directory", p.option = "--out", p.label = "Atlas folder to write", p.channel = "output";
-  io.parameters.push_back(p);
-  m.groups.push_back(io);
-  SlicerGroup build{"Atlas", "What the atlas keeps.", true, {}};
-  p = {};
-  p.tag = "string-enumeration", p.option = "--collisions", p.label = "Collision pairs", p.defaultValue = "auto",
-  p.elements = {"auto", "all", "none"};
-  build.parameters.push_back(p);
-  p = {};
-  p.tag = "string-enumeration", p.option = "--modality", p.label = "Modality", p.defaultValue = "auto",
-  p.elements = {"auto", "ct", "mr"};
-  build.parameters.push_back(p);
-  p = {};
-  p.tag = "double", p.option = "--margin", p.label = "Margin kept around the structures (mm)", p.defaultValue = "30",
-  p.hasRange = true, p.minimum = 0, p.maximum = 500, p.step = 1;
-  build.parameters.push_back(p);
-  p = {};
-  p.tag = "integer", p.option = "--vertices", p.label = "Vertices per template", p.defaultValue = "3000",
-  p.hasRange = true, p.minimum = 4, p.maximum = 100000, p.step = 100;
-  build.parameters.push_back(p);
-  p = {};
-  p.tag = "double", p.option = "--smooth", p.label = "Label blur (mm, 0: automatic)", p.defaultValue = "0",
-  p.hasRange = true, p.minimum = 0, p.maximum = 20, p.step = 0.1;
-  build.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--progress-tags", p.label = "Progress in Slicer", p.defaultValue = "true",
-  p.hidden = true;
-  build.parameters.push_back(p);
+  using P = SlicerParameter;
+  m.groups.push_back({"Input and output",
+                      "The reference subject and the atlas folder written.",
+                      false,
+                      {P("image", "--image", "Reference volume").type("scalar").extensions(".nii.gz"),
+                       P("image", "--labels", "Its label map").type("label").extensions(".nii.gz"),
+                       P("string", "--objects", "Structures (NAME:LABEL:KIND,...)"),
+                       P("directory", "--out", "Atlas folder to write").output()}});
+  SlicerGroup build{
+      "Atlas",
+      "What the atlas keeps.",
+      true,
+      {P("string-enumeration", "--collisions", "Collision pairs").byDefault("auto").choices({"auto", "all", "none"}),
+       P("string-enumeration", "--modality", "Modality").byDefault("auto").choices({"auto", "ct", "mr"}),
+       P("double", "--margin", "Margin kept around the structures (mm)").byDefault("30").range(0, 500, 1)}};
+  for (const SlicerParameter& p : templateParameters("Vertices per template")) build.parameters.push_back(p);
+  build.parameters.push_back(progressTagsParameter());
   m.groups.push_back(build);
   return m;
 }

@@ -215,67 +215,33 @@ SlicerModule segmentModule() {
   m.description =
       "Segments bones and muscles with deformable simplex meshes: an atlas (mskseg atlas) is placed in the image by "
       "registration, or a scene's templates already in place are evolved; writes the label map and the surfaces.";
-  SlicerGroup io{"Input and output", "The image, the atlas or scene, and where the results go.", false, {}};
-  SlicerParameter p;
-  p = {};
-  p.tag = "image", p.option = "--image", p.label = "Input volume", p.imageType = "scalar", p.fileExtensions = ".nii.gz";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "directory", p.option = "--atlas", p.label = "Atlas folder";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "file", p.option = "--scene", p.label = "Scene (instead of an atlas)", p.fileExtensions = ".json";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "image", p.option = "--label-map", p.label = "Output label map", p.channel = "output", p.imageType = "label",
-  p.fileExtensions = ".nii.gz";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "geometry", p.option = "--surfaces", p.label = "Output surfaces", p.channel = "output", p.imageType = "model",
-  p.fileExtensions = ".vtk";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "directory", p.option = "--out", p.label = "Folder of all outputs (optional)", p.channel = "output";
-  io.parameters.push_back(p);
-  m.groups.push_back(io);
-
-  SlicerGroup run{"Segmentation", "Speed against accuracy, and what is written besides.", false, {}};
-  p = {};
-  p.tag = "string-enumeration", p.option = "--quality", p.label = "Quality", p.defaultValue = "balanced",
-  p.elements = {"fast", "balanced", "accurate"};
-  run.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--split", p.label = "One mask per structure", p.defaultValue = "false";
-  run.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--no-qc", p.label = "No QC pictures", p.defaultValue = "false";
-  run.parameters.push_back(p);
-  p = {};
-  p.tag = "integer", p.option = "--threads", p.label = "Threads (0: all cores)", p.defaultValue = "0",
-  p.hasRange = true, p.minimum = 0, p.maximum = 256, p.step = 1;
-  run.parameters.push_back(p);
-  m.groups.push_back(run);
-
-  SlicerGroup placing{"Atlas placement", "How an atlas is placed in the image.", true, {}};
-  p = {};
-  p.tag = "string-enumeration", p.option = "--metric", p.label = "Registration metric", p.defaultValue = "auto",
-  p.elements = {"auto", "ncc", "mi"};
-  placing.parameters.push_back(p);
-  p = {};
-  p.tag = "file", p.option = "--init-transform", p.label = "Initial transform", p.fileExtensions = ".tfm,.txt,.json";
-  placing.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--no-register", p.label = "No registration", p.defaultValue = "false";
-  placing.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--no-object-register", p.label = "No per-object registration",
-  p.defaultValue = "false";
-  placing.parameters.push_back(p);
-  p = {};
-  p.tag = "boolean", p.option = "--progress-tags", p.label = "Progress in Slicer", p.defaultValue = "true",
-  p.hidden = true;
-  placing.parameters.push_back(p);
-  m.groups.push_back(placing);
+  using P = SlicerParameter;
+  m.groups.push_back({"Input and output",
+                      "The image, the atlas or scene, and where the results go.",
+                      false,
+                      {P("image", "--image", "Input volume").type("scalar").extensions(".nii.gz"),
+                       P("directory", "--atlas", "Atlas folder"),
+                       P("file", "--scene", "Scene (instead of an atlas)").extensions(".json"),
+                       P("image", "--label-map", "Output label map").output().type("label").extensions(".nii.gz"),
+                       P("geometry", "--surfaces", "Output surfaces").output().type("model").extensions(".vtk"),
+                       P("directory", "--out", "Folder of all outputs (optional)").output()}});
+  m.groups.push_back(
+      {"Segmentation",
+       "Speed against accuracy, and what is written besides.",
+       false,
+       {P("string-enumeration", "--quality", "Quality").byDefault("balanced").choices({"fast", "balanced", "accurate"}),
+        P("boolean", "--split", "One mask per structure").byDefault("false"),
+        P("boolean", "--no-qc", "No QC pictures").byDefault("false"),
+        P("integer", "--threads", "Threads (0: all cores)").byDefault("0").range(0, 256, 1)}});
+  m.groups.push_back(
+      {"Atlas placement",
+       "How an atlas is placed in the image.",
+       true,
+       {P("string-enumeration", "--metric", "Registration metric").byDefault("auto").choices({"auto", "ncc", "mi"}),
+        P("file", "--init-transform", "Initial transform").extensions(".tfm,.txt,.json"),
+        P("boolean", "--no-register", "No registration").byDefault("false"),
+        P("boolean", "--no-object-register", "No per-object registration").byDefault("false"),
+        progressTagsParameter()}});
   return m;
 }
 

@@ -37,35 +37,25 @@ void addTemplateOptions(CLI::App& app, TemplateOptions& opts) {
             "staircase of thick slices)");
 }
 
+std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel) {
+  return {SlicerParameter("integer", "--vertices", verticesLabel).byDefault("3000").range(4, 100000, 100),
+          SlicerParameter("double", "--smooth", "Label blur (mm, 0: automatic)").byDefault("0").range(0, 20, 0.1)};
+}
+
 namespace {
 /// The module's parameters: the options 3D Slicer's panel shows for `mskseg template`.
 SlicerModule templateModule() {
   SlicerModule m;
   m.title = "mskseg template";
   m.description = "A smooth closed template surface of one label of a label map (for a scene of mskseg segment).";
-  SlicerGroup io{"Input and output", "The label map, the label and the surface written.", false, {}};
-  SlicerParameter p;
-  p.tag = "image", p.option = "--labels", p.label = "Label map", p.imageType = "label", p.fileExtensions = ".nii.gz";
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "integer", p.option = "--label", p.label = "Label", p.defaultValue = "1", p.hasRange = true, p.minimum = 1,
-  p.maximum = 2147483647, p.step = 1;
-  io.parameters.push_back(p);
-  p = {};
-  p.tag = "geometry", p.option = "--out", p.label = "Template surface", p.channel = "output", p.imageType = "model",
-  p.fileExtensions = ".vtk";
-  io.parameters.push_back(p);
-  m.groups.push_back(io);
-  SlicerGroup shape{"Surface", "Its resolution and smoothness.", false, {}};
-  p = {};
-  p.tag = "integer", p.option = "--vertices", p.label = "Vertices", p.defaultValue = "3000", p.hasRange = true,
-  p.minimum = 4, p.maximum = 100000, p.step = 100;
-  shape.parameters.push_back(p);
-  p = {};
-  p.tag = "double", p.option = "--smooth", p.label = "Label blur (mm, 0: automatic)", p.defaultValue = "0",
-  p.hasRange = true, p.minimum = 0, p.maximum = 20, p.step = 0.1;
-  shape.parameters.push_back(p);
-  m.groups.push_back(shape);
+  using P = SlicerParameter;
+  m.groups.push_back({"Input and output",
+                      "The label map, the label and the surface written.",
+                      false,
+                      {P("image", "--labels", "Label map").type("label").extensions(".nii.gz"),
+                       P("integer", "--label", "Label").byDefault("1").range(1, 2147483647, 1),
+                       P("geometry", "--out", "Template surface").output().type("model").extensions(".vtk")}});
+  m.groups.push_back({"Surface", "Its resolution and smoothness.", false, templateParameters("Vertices")});
   return m;
 }
 }  // namespace

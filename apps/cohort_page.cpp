@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "cohort.h"
+#include "commands.h"
 #include "msk/core/atomic_file.h"
 #include "msk/core/error.h"
 #include "msk/core/log.h"
@@ -21,32 +22,6 @@ namespace fs = std::filesystem;
 namespace msk::cli {
 
 namespace {
-
-std::string escaped(const std::string& s) {
-  std::string out;
-  for (char ch : s) {
-    switch (ch) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&#39;";
-        break;
-      default:
-        out += ch;
-    }
-  }
-  return out;
-}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -85,7 +60,7 @@ std::map<std::string, std::map<std::string, double>> volumeDeviations(const std:
 std::string numberCell(double v, int digits, const std::string& cls = "", const std::string& title = "") {
   if (!std::isfinite(v)) return "<td data-v=\"\"></td>";
   return "<td data-v=\"" + fixed(v, 6) + "\"" + (cls.empty() ? "" : " class=\"" + cls + "\"") +
-         (title.empty() ? "" : " title=\"" + escaped(title) + "\"") + ">" + fixed(v, digits) + "</td>";
+         (title.empty() ? "" : " title=\"" + markupEscaped(title) + "\"") + ">" + fixed(v, digits) + "</td>";
 }
 
 constexpr const char* kStyle = R"(
@@ -178,15 +153,16 @@ void writeCohortPage(const std::string& out, const std::vector<Case>& cases, con
 
   std::ostringstream h;
   h << "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-    << "<meta name=\"viewport\" content=\"width=device-width\"><title>mskseg cohort: " << escaped(title)
+    << "<meta name=\"viewport\" content=\"width=device-width\"><title>mskseg cohort: " << markupEscaped(title)
     << "</title><style>" << kStyle << "</style></head><body>\n";
-  h << "<h1>mskseg cohort report</h1>\n<p class=\"summary\">" << escaped(title) << ": " << cases.size() << " case(s)";
-  for (const auto& [status, n] : statusCount) h << ", " << n << " " << escaped(status);
+  h << "<h1>mskseg cohort report</h1>\n<p class=\"summary\">" << markupEscaped(title) << ": " << cases.size()
+    << " case(s)";
+  for (const auto& [status, n] : statusCount) h << ", " << n << " " << markupEscaped(status);
   h << ". Volumes more than 3.5 robust standard deviations from the cohort's median are marked. Mskseg "
-    << escaped(MSK_VERSION) << ".</p>\n";
+    << markupEscaped(MSK_VERSION) << ".</p>\n";
   h << "<div class=\"controls\"><label>Status <select id=\"status\"><option value=\"\">all</option>";
   for (const auto& [status, n] : statusCount)
-    h << "<option value=\"" << escaped(status) << "\">" << escaped(status) << " (" << n << ")</option>";
+    h << "<option value=\"" << markupEscaped(status) << "\">" << markupEscaped(status) << " (" << n << ")</option>";
   h << "</select></label> Click a column's title to sort by it.</div>\n";
 
   h << "<table id=\"cases\"><thead><tr>"
@@ -195,7 +171,7 @@ void writeCohortPage(const std::string& out, const std::vector<Case>& cases, con
     << "<th class=\"text\" data-key=\"quality\" data-type=\"text\">quality</th>"
     << "<th data-key=\"seconds\" data-type=\"number\">seconds</th>";
   for (const std::string& o : objects)
-    h << "<th data-key=\"volume:" << escaped(o) << "\" data-type=\"number\">" << escaped(o) << " mL</th>";
+    h << "<th data-key=\"volume:" << markupEscaped(o) << "\" data-type=\"number\">" << markupEscaped(o) << " mL</th>";
   if (scored)
     h << "<th data-key=\"mean_dice\" data-type=\"number\">mean Dice</th>"
       << "<th data-key=\"min_dice\" data-type=\"number\">min Dice</th>"
@@ -204,9 +180,9 @@ void writeCohortPage(const std::string& out, const std::vector<Case>& cases, con
     << "<th class=\"text\" data-key=\"message\" data-type=\"text\">message</th></tr></thead>\n<tbody>\n";
 
   for (const Case& c : cases) {
-    h << "<tr class=\"" << escaped(c.status) << "\" data-status=\"" << escaped(c.status) << "\">"
-      << "<td class=\"text\">" << escaped(c.name) << "</td><td class=\"text status\">" << escaped(c.status)
-      << "</td><td class=\"text quality-" << escaped(c.quality) << "\">" << escaped(c.quality) << "</td>"
+    h << "<tr class=\"" << markupEscaped(c.status) << "\" data-status=\"" << markupEscaped(c.status) << "\">"
+      << "<td class=\"text\">" << markupEscaped(c.name) << "</td><td class=\"text status\">" << markupEscaped(c.status)
+      << "</td><td class=\"text quality-" << markupEscaped(c.quality) << "\">" << markupEscaped(c.quality) << "</td>"
       << numberCell(c.seconds > 0 ? c.seconds : std::nan(""), 1);
     for (const std::string& o : objects) {
       double v = std::nan("");
@@ -232,13 +208,13 @@ void writeCohortPage(const std::string& out, const std::vector<Case>& cases, con
       try {
         const std::string thumb = base64(thumbnailJpeg(c.mosaicPath, 240));
         const std::string link = fs::path(c.mosaicPath).lexically_relative(root).generic_string();
-        h << "<a href=\"" << escaped(link) << "\"><img class=\"thumb\" alt=\"QC of " << escaped(c.name)
+        h << "<a href=\"" << markupEscaped(link) << "\"><img class=\"thumb\" alt=\"QC of " << markupEscaped(c.name)
           << "\" src=\"data:image/jpeg;base64," << thumb << "\"></a>";
       } catch (const Error& e) {
         log::warn(std::string("QC thumbnail of ") + c.name + " left out: " + e.what());
       }
     }
-    h << "</td><td class=\"message\">" << escaped(c.message) << "</td></tr>\n";
+    h << "</td><td class=\"message\">" << markupEscaped(c.message) << "</td></tr>\n";
   }
   char when[32];
   const std::time_t now = std::time(nullptr);

@@ -11,6 +11,7 @@
 #include "msk/imaging/volume.h"
 #include "msk/segmentation/segment_options.h"
 #include "msk/segmentation/template_builder.h"
+#include "slicer_module.h"
 
 namespace msk::cli {
 /// mskseg info FILE: a NIfTI volume's geometry and values, or a mesh file's summary.
@@ -52,8 +53,14 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& opts, SegmentOutputs& outp
 
 /// Binds the template options (--vertices, --smooth) of `template` and `scene` into `opts`.
 void addTemplateOptions(CLI::App& app, TemplateOptions& opts);
+
+/// The 3D Slicer module parameters of those options (--vertices labelled `verticesLabel`, --smooth).
+std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel);
 /// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
 void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
+
+/// `s` with the characters special in HTML and XML (& < > " ') written as character references.
+std::string markupEscaped(const std::string& s);
 
 /// The command line as a JSON array ["mskseg", command, args...], for the results it produced.
 Json commandLineJson(const std::string& command, const std::vector<std::string>& args);

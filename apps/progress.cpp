@@ -22,6 +22,32 @@ Json commandLineJson(const std::string& command, const std::vector<std::string>&
   return cmd;
 }
 
+std::string markupEscaped(const std::string& s) {
+  std::string out;
+  for (char ch : s) {
+    switch (ch) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += ch;
+    }
+  }
+  return out;
+}
+
 namespace {
 bool progressTags = false;
 

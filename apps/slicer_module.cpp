@@ -10,30 +10,6 @@ namespace msk::cli {
 
 namespace {
 
-/// `text` with XML's special characters escaped.
-std::string xmlText(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
 /// "--init-transform" -> "init_transform": a name and long flag of the form the Execution Model allows.
 std::string flagName(const std::string& option) {
   std::string name = option.substr(option.find_first_not_of('-'));
@@ -58,14 +34,14 @@ void writeParameter(std::ostream& x, const CLI::App& app, const SlicerParameter&
   x << ">\n";
   x << "      <name>" << flagName(p.option) << "</name>\n";
   x << "      <longflag>" << flagName(p.option) << "</longflag>\n";
-  x << "      <description>" << xmlText(opt->get_description()) << "</description>\n";
-  x << "      <label>" << xmlText(p.label) << "</label>\n";
-  if (!p.defaultValue.empty()) x << "      <default>" << xmlText(p.defaultValue) << "</default>\n";
+  x << "      <description>" << markupEscaped(opt->get_description()) << "</description>\n";
+  x << "      <label>" << markupEscaped(p.label) << "</label>\n";
+  if (!p.defaultValue.empty()) x << "      <default>" << markupEscaped(p.defaultValue) << "</default>\n";
   x << "      <channel>" << p.channel << "</channel>\n";
   if (p.hasRange)
     x << "      <constraints>\n        <minimum>" << number(p.minimum) << "</minimum>\n        <maximum>"
       << number(p.maximum) << "</maximum>\n        <step>" << number(p.step) << "</step>\n      </constraints>\n";
-  for (const std::string& e : p.elements) x << "      <element>" << xmlText(e) << "</element>\n";
+  for (const std::string& e : p.elements) x << "      <element>" << markupEscaped(e) << "</element>\n";
   x << "    </" << p.tag << ">\n";
 }
 
@@ -75,19 +51,23 @@ std::string slicerModuleXml(const CLI::App& app, const SlicerModule& module) {
   std::ostringstream x;
   x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<executable>\n";
   x << "  <category>Segmentation.mskseg</category>\n";
-  x << "  <title>" << xmlText(module.title) << "</title>\n";
-  x << "  <description>" << xmlText(module.description) << "</description>\n";
+  x << "  <title>" << markupEscaped(module.title) << "</title>\n";
+  x << "  <description>" << markupEscaped(module.description) << "</description>\n";
   x << "  <version>" << MSK_VERSION << "</version>\n";
   x << "  <contributor>the mskseg developers</contributor>\n";
   for (const SlicerGroup& g : module.groups) {
     x << "  <parameters" << (g.advanced ? " advanced=\"true\"" : "") << ">\n";
-    x << "    <label>" << xmlText(g.label) << "</label>\n";
-    x << "    <description>" << xmlText(g.description) << "</description>\n";
+    x << "    <label>" << markupEscaped(g.label) << "</label>\n";
+    x << "    <description>" << markupEscaped(g.description) << "</description>\n";
     for (const SlicerParameter& p : g.parameters) writeParameter(x, app, p);
     x << "  </parameters>\n";
   }
   x << "</executable>\n";
   return x.str();
+}
+
+SlicerParameter progressTagsParameter() {
+  return SlicerParameter("boolean", "--progress-tags", "Progress in Slicer").byDefault("true").hide();
 }
 
 bool handleSlicerXml(CLI::App& app, const std::vector<std::string>& args, const SlicerModule& module) {

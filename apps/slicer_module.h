@@ -4,14 +4,48 @@
 // mskseg-<command> runs as `mskseg <command>` (Slicer runs a module's executable with the arguments it builds from
 // that description: `--flag value` pairs, booleans as a bare flag when true).
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli.h"
 
 namespace msk::cli {
 
-/// One parameter of a module, bound to an option of the command (its description is the option's help text).
+/// One parameter of a module, bound to an option of the command (its description is the option's help text). Built
+/// as SlicerParameter("image", "--image", "Input volume").type("scalar").extensions(".nii.gz").
 struct SlicerParameter {
+  SlicerParameter(std::string tagName, std::string optionName, std::string panelLabel)
+      : tag(std::move(tagName)), option(std::move(optionName)), label(std::move(panelLabel)) {}
+  /// An output of the module (channel "output").
+  SlicerParameter& output() {
+    channel = "output";
+    return *this;
+  }
+  SlicerParameter& type(std::string t) {
+    imageType = std::move(t);
+    return *this;
+  }
+  SlicerParameter& extensions(std::string e) {
+    fileExtensions = std::move(e);
+    return *this;
+  }
+  SlicerParameter& byDefault(std::string d) {
+    defaultValue = std::move(d);
+    return *this;
+  }
+  SlicerParameter& choices(std::vector<std::string> values) {
+    elements = std::move(values);
+    return *this;
+  }
+  SlicerParameter& range(double lo, double hi, double by) {
+    hasRange = true, minimum = lo, maximum = hi, step = by;
+    return *this;
+  }
+  SlicerParameter& hide() {
+    hidden = true;
+    return *this;
+  }
+
   std::string tag;     ///< image, geometry, file, directory, boolean, integer, double, string, string-enumeration
   std::string option;  ///< the command's option, e.g. "--init-transform"
   std::string label;   ///< what Slicer's panel shows
@@ -42,6 +76,9 @@ struct SlicerModule {
 /// name init_transform, long flag init_transform, which the command accepts; see parseArgs()), its description from
 /// the option's help. Throws std::logic_error if a parameter names an option `app` does not have.
 std::string slicerModuleXml(const CLI::App& app, const SlicerModule& module);
+
+/// The hidden parameter of --progress-tags, on: the modules of commands that report progress pass it.
+SlicerParameter progressTagsParameter();
 
 /// Adds --xml to `app` (shown in its help). Call after every other option is added and before parseArgs(): if `args`
 /// holds --xml, prints the module's XML on stdout and returns true (the command then ends).
