@@ -129,12 +129,27 @@ VolumeCase realAutochthonCase(const std::string& sharedData) {
   return c;
 }
 
-VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale, RestQuality rest) {
+namespace {
+/// The case's object with its true surface moved (and scaled) as runMovedTruth() describes.
+SceneObject movedTruthObject(const VolumeCase& c, double angleDeg, double scale) {
   const Eigen::Vector3d axis(1, 2, 3), offset(2.0, -2.5, 1.5);
   SceneObject o = c.object;
   o.templ = movedScaled(c.truth, angleDeg, axis, scale, offset);
   if (c.real) o.profileSource = movedScaledMatrix(c.truth, angleDeg, axis, scale, offset).inverse();
+  return o;
+}
+}  // namespace
+
+VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale, RestQuality rest) {
+  const SceneObject o = movedTruthObject(c, angleDeg, scale);
   return runVolumeModel(c.image, o, c.labels, o.label, enclosedVolume(c.truth), SegmentOptions{}, rest);
+}
+
+double surfaceModelMovedTruthMm3(const VolumeCase& c, double angleDeg, double scale) {
+  Scene scene;
+  scene.objects.push_back(movedTruthObject(c, angleDeg, scale));
+  scene.objects.back().model.volumetric = false;
+  return enclosedVolume(segmentScene(c.image, scene, SegmentOptions{}).objects.at(0).mesh);
 }
 
 }  // namespace msk::test

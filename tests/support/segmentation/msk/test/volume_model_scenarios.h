@@ -71,4 +71,8 @@ VolumeCase realAutochthonCase(const std::string& sharedData);
 /// scaled by `scale` (a real case learns its profiles where the template came from: the true place).
 VolumeRun runMovedTruth(const VolumeCase& c, double angleDeg, double scale, RestQuality rest = RestQuality::Measure);
 
+/// The volume (mm³) the same muscle reaches as a plain surface model from the same start as runMovedTruth(): where the
+/// image forces alone take it, which a volume model that follows the image should reach too.
+double surfaceModelMovedTruthMm3(const VolumeCase& c, double angleDeg, double scale);
+
 }  // namespace msk::test
