@@ -57,7 +57,8 @@ CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::sha
       proximity_(proximityMm),
       friction_(friction),
       response_(response),
-      dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()) {
+      dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()),
+      hint_(static_cast<size_t>(std::max(vertexCount, 0)), -1) {
   checkContactParameters(gapMm, proximityMm, friction);
   MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
   first_ = firstA;
@@ -86,7 +87,10 @@ void CollisionConstraints::detect(const Points& p, bool insideTest) {
   const bool reference = response_.target == CollisionTarget::Reference;
   for (int v = 0; v < count_; ++v) {
     const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
-    const SurfacePoint s = surface_->closest(p, q, reach);
+    // The triangle found last time starts the search: between detections a vertex moves a fraction of a triangle.
+    int& hint = hint_[static_cast<size_t>(v)];
+    const SurfacePoint s = surface_->closest(p, q, reach, hint);
+    hint = s.triangle;
     if (s.triangle < 0) continue;
     Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
     // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is

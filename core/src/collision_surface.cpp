@@ -68,9 +68,9 @@ void CollisionSurface::update(const Points& p) {
   grid_.build(layout, p, tri_);
 }
 
-SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance) const {
+SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint) const {
   if (grid_.empty() || (q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) return {};
-  return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_));
+  return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_), hint);
 }
 
 Eigen::Vector3d CollisionSurface::faceNormal(const Points& p, int t) const {

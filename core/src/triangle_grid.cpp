@@ -62,18 +62,36 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   for (size_t k = 0; k < items_.size(); ++k) itemCells_[k] = {items_[k].cell[0], items_[k].cell[1], items_[k].cell[2]};
 }
 
-SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q,
-                                         double radius) const {
+SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q, double radius,
+                                         int hint) const {
   SurfacePoint best;
   best.distance = radius;
   // Only the cells the ball of `radius` around q touches (at most 2 per axis, as cells are at least `radius` wide),
   // within the 3×3×3 block around q's cell; the result is that of scanning the whole block, each cell's triangles by
-  // index, keeping the first of equally close ones.
+  // index, keeping the first of equally close ones: the least (distance, key), the key ordering the block's cells in
+  // z, y, x order, then the triangles by index.
   const Eigen::Vector3i c = cellOf(q);
-  const double pad = radius * (1 + 1e-9) + 1e-9;  // a superset of the touched cells despite rounding
+  auto keyOf = [&](const int cell[3], int t) {
+    const Eigen::Vector3i first = Eigen::Vector3i(cell[0], cell[1], cell[2]).cwiseMax(c - Eigen::Vector3i::Ones());
+    return cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
+  };
+  size_t bestKey = 0;
+  if (hint >= 0 && hint < triangles_ && boxes_.size() == static_cast<size_t>(triangles_)) {
+    Eigen::Vector3d bc;
+    const Eigen::Vector3d cp = closestPointOnTriangle(
+        q, p.row(tri(hint, 0)).transpose(), p.row(tri(hint, 1)).transpose(), p.row(tri(hint, 2)).transpose(), &bc);
+    const double d = (cp - q).norm();
+    if (d < radius) {
+      best.distance = d;
+      best.point = cp;
+      best.triangle = hint;
+      bestKey = keyOf(boxes_[static_cast<size_t>(hint)].cell, hint);
+      for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
+    }
+  }
+  const double pad = best.distance * (1 + 1e-9) + 1e-9;  // a superset of the touched cells despite rounding
   const Eigen::Vector3i from = cellOf((q.array() - pad).matrix()).cwiseMax(c - Eigen::Vector3i::Ones());
   const Eigen::Vector3i to = cellOf((q.array() + pad).matrix()).cwiseMin(c + Eigen::Vector3i::Ones());
-  size_t bestKey = 0;
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {
@@ -86,24 +104,21 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
               std::max(lowest[2], from[2]) != z)
             continue;
           const CellItem& item = items_[static_cast<size_t>(k)];
-          // Cheap rejection: the triangle's box is already farther than the best found.
+          // Cheap rejection: the triangle's box is farther than the best found (with a margin for rounding, so that
+          // a triangle exactly as close, sharing the best one's vertex, always reaches the comparison of keys).
           double boxSq = 0;
           for (int a = 0; a < 3; ++a) {
             const double out = std::max(std::max(item.lo[a] - q[a], q[a] - item.hi[a]), 0.0);
             boxSq += out * out;
           }
-          if (boxSq > best.distance * best.distance) continue;
+          if (boxSq > best.distance * best.distance * (1 + 1e-12)) continue;
           const int t = item.triangle;
           Eigen::Vector3d bc;
           const Eigen::Vector3d cp = closestPointOnTriangle(
               q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(), p.row(tri(t, 2)).transpose(), &bc);
           const double d = (cp - q).norm();
           if (!(d <= best.distance)) continue;
-          // Where the block scan meets t first: its first cell in the block (the box's lowest corner), then t.
-          const Eigen::Vector3i first =
-              Eigen::Vector3i(item.cell[0], item.cell[1], item.cell[2]).cwiseMax(c - Eigen::Vector3i::Ones());
-          const size_t key =
-              cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
+          const size_t key = keyOf(item.cell, t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
           best.distance = d;
           best.point = cp;

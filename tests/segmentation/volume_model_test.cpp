@@ -20,7 +20,8 @@
 // from the same start, within 3.5 % of its volume). The true volume is not the bound of the second case: the image
 // force alone stops 3–5 % short of it (blur and partial volume, a surface model as much), and within the preset's 60
 // steps a level the volume model is still creeping outwards on the autochthon, so where it stops depends on rounding:
-// −4.6 % of the true volume with GCC, −5.95 % with clang, −4.0 % with either given 120 or 240 steps. Measured,
+// −4.6 % of the true volume with GCC, −5.95 % with clang (given 120 / 240 steps: GCC −4.0 / −4.0 %, clang −3.9 /
+// −4.6 %). Measured,
 // hamstrings / autochthon: kept +0.00 % / −0.00 % (Dice 0.841 → 0.972 / 0.867 → 0.967); scaled +23.4 % / +23.2 %,
 // against the surface model +1.2 % / −1.4 % (clang −2.8 %), Dice 0.971 / 0.953 (clang 0.949). No inverted tet at the
 // end, of about 15 600 (phantom) and 11 200 (real), the tet boundary on the surface's vertices (0 mm off).

@@ -107,6 +107,7 @@ class CollisionConstraints : public ConstraintSet {
   CollisionResponse response_;
   std::vector<Contact> contacts_;
   std::vector<double> dref_;  ///< per vertex of A: recorded reference distance (NaN = none)
+  std::vector<int> hint_;     ///< per vertex of A: the partner triangle its last query found (−1 = none)
 };
 
 /// Global collision resolution (DESIGN-NOTES §5): the contacts of every member set (all built with

@@ -21,8 +21,9 @@ class CollisionSurface {
   CollisionSurface(const Triangles& triangles, double reachMm);
   /// Rebuilds the grid over the triangles at positions `p` (call once per step, before the queries).
   void update(const Points& p);
-  /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update().
-  SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance) const;
+  /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update();
+  /// `hint` a triangle likely to be it (TriangleGrid::closestWithin(), the same answer with or without).
+  SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint = -1) const;
   /// Pseudonormal of the closest feature of `s` (face, edge: sum of its two faces, vertex: angle-weighted), not unit:
   /// its sign against q − point is exact for a closed, non-self-intersecting surface (Bærentzen & Aanæs 2005).
   Eigen::Vector3d pseudonormal(const Points& p, const SurfacePoint& s) const;
