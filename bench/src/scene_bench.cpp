@@ -121,12 +121,13 @@ void printSceneBench(const SceneBenchFigures& f) {
               f.options.segment.collision.enabled ? "on" : "off");
   std::printf("\ntime per stage (s, wall)\n");
   std::printf("  %-22s %8.2f  (cpu %.2f)\n", "generation", f.generationSeconds, f.generationCpu);
-  // The pipeline's stages in run order (collision detection is timed inside the evolution), then any others.
+  // The pipeline's stages in run order (the templates' preparation and collision detection are timed inside the
+  // evolution), then any others.
   std::map<std::string, double> stagesLeft = f.result.secondsPerStage;
-  for (const char* stage : {"features", "evolution", "collision-detection", "separation", "rasterise"}) {
+  for (const char* stage : {"features", "evolution", "preparation", "collision-detection", "separation", "rasterise"}) {
     const auto it = stagesLeft.find(stage);
     if (it == stagesLeft.end()) continue;
-    const bool inner = it->first == "collision-detection";
+    const bool inner = it->first == "collision-detection" || it->first == "preparation";
     std::printf("  %s%-*s %8.2f%s\n", inner ? "  " : "", inner ? 20 : 22, it->first.c_str(), it->second,
                 inner ? "  (part of evolution)" : "");
     stagesLeft.erase(it);

@@ -130,9 +130,10 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   const TargetMode asked = obj.hasForce ? obj.force : obj.model.imageForce;
   st.force = asked == TargetMode::Profile && !hasProfileSource(obj) ? TargetMode::Gradient : asked;
   if (st.force != asked)
-    log::warn(obj.name +
-              ": the profile force has no \"profiles_from\" (a mirror, matrix or image to learn its profiles on); "
-              "profiles learned on the template where it starts would hold it there: using the gradient force");
+    st.warnings.push_back(
+        obj.name +
+        ": the profile force has no \"profiles_from\" (a mirror, matrix or image to learn its profiles on); "
+        "profiles learned on the template where it starts would hold it there: using the gradient force");
   st.out.force = st.force;
   st.search.mode = st.force;
   st.search.distancePenalty = opts.image.edgePenalty;

@@ -12,7 +12,8 @@
 namespace msk::detail {
 
 /// Calls work(k) for every k in [0, n) on `threads` threads (0 = all cores; the caller is one of them), handing the
-/// items out one at a time. The first exception thrown by an item is rethrown once all threads have stopped.
+/// items out one at a time. Once all threads have stopped, the exception of the lowest item that threw is rethrown (the
+/// one a single thread would have met first).
 template <typename Work>
 void parallelEach(size_t n, int threads, Work&& work) {
   const size_t cores = std::max(1u, std::thread::hardware_concurrency());
@@ -23,6 +24,7 @@ void parallelEach(size_t n, int threads, Work&& work) {
   }
   std::atomic<size_t> next{0};
   std::exception_ptr failure;
+  size_t failedItem = n;
   std::mutex failureMutex;
   auto loop = [&]() {
     for (size_t k = next++; k < n; k = next++) {
@@ -30,7 +32,10 @@ void parallelEach(size_t n, int threads, Work&& work) {
         work(k);
       } catch (...) {
         std::lock_guard<std::mutex> lock(failureMutex);
-        if (!failure) failure = std::current_exception();
+        if (k < failedItem) {
+          failure = std::current_exception();
+          failedItem = k;
+        }
       }
     }
   };

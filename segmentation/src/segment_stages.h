@@ -78,6 +78,7 @@ struct ObjectState {
   SimplexMesh current;
   Eigen::VectorXd residual;
   double driftMmPerStep = 0;  ///< mean net displacement per step of the surface over the last steps of the pass, mm
+  std::vector<std::string> warnings;  ///< prepareObject()'s warnings, printed in object order once all are prepared
   double searchSeconds = 0;
   int first = 0;  ///< first particle in the stacked system at the current level
   // Per-level constraint sets.
@@ -129,6 +130,8 @@ struct ObjectState {
 // ---- object_model.cpp: the templates' levels and the constraint sets of a level
 
 /// Builds the resolution levels (remeshed and tetrahedralised where asked), polarity and search settings of one object.
+/// Safe to run for several objects at once when `features` and the objects' profile caches hold the coarsest scale
+/// rs.sigmaMm[0] already (it only reads them then); its warnings go to st.warnings.
 void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features);
 
 /// Moves an object to level `l` (carrying the coarser level's displacement) and builds its constraint sets. The

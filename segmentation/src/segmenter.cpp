@@ -8,8 +8,10 @@
 #include <string>
 
 #include "msk/core/error.h"
+#include "msk/core/log.h"
 #include "msk/segmentation/quality_check.h"
 #include "msk/segmentation/surface_quality.h"
+#include "parallel_each.h"
 #include "segment_stages.h"
 
 namespace msk {
@@ -189,6 +191,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   features.prepare(res.settings.sigmaMm, opts.evolution.threads);        // every level's scale, in parallel
   std::map<const ImageF*, std::unique_ptr<FeatureCache>> profileCaches;  // per image objects learn profiles on
   std::vector<ObjectState> objs(scene.objects.size());
+  const auto tp = Clock::now();
   for (size_t i = 0; i < objs.size(); ++i) {
     objs[i].obj = &scene.objects[i];
     if (const ImageF* own = scene.objects[i].profileImage.get()) {
@@ -196,8 +199,15 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       if (!cache) cache = std::make_unique<FeatureCache>(*own);
       objs[i].profileFeatures = cache.get();
     }
-    prepareObject(objs[i], opts, res.settings, features);
   }
+  // The objects' templates (remeshing, levels, tets, polarity) are prepared on the threads: each reads the prepared
+  // scales and writes only its own state.
+  for (auto& kv : profileCaches) kv.second->prepare({res.settings.sigmaMm[0]}, opts.evolution.threads);
+  parallelEach(objs.size(), opts.evolution.threads,
+               [&](size_t i) { prepareObject(objs[i], opts, res.settings, features); });
+  for (const ObjectState& st : objs)
+    for (const std::string& w : st.warnings) log::warn(w);
+  res.secondsPerStage["preparation"] = since(tp);
   const double detectSeconds = evolve(objs, res, scene, contacts, opts, features, image.grid, progress);
   for (ObjectState& st : objs) {
     finishObject(st, opts.surface.unfoldSurfaces);
