@@ -14,12 +14,14 @@ size_t TriangleGrid::cellIndex(int x, int y, int z) const {
          static_cast<size_t>(x);
 }
 
+int TriangleGrid::clampedCell(double u, int a) const {
+  const double f = std::floor(u);
+  return !(f >= 0) ? 0 : f >= layout_.dims[a] - 1 ? layout_.dims[a] - 1 : static_cast<int>(f);
+}
+
 Eigen::Vector3i TriangleGrid::cellOf(const Eigen::Vector3d& x) const {
   Eigen::Vector3i c;
-  for (int a = 0; a < 3; ++a) {
-    const double u = std::floor((x[a] - layout_.lo[a]) / layout_.cell);
-    c[a] = !(u >= 0) ? 0 : u >= layout_.dims[a] - 1 ? layout_.dims[a] - 1 : static_cast<int>(u);
-  }
+  for (int a = 0; a < 3; ++a) c[a] = clampedCell((x[a] - layout_.lo[a]) / layout_.cell, a);
   return c;
 }
 
@@ -34,6 +36,7 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   query_ = 0;
   std::vector<CellItem>& boxes = boxes_;
   boxes.resize(static_cast<size_t>(triangles_));
+  lastCells_.resize(static_cast<size_t>(triangles_));
   for (int t = 0; t < triangles_; ++t) {
     const Eigen::Vector3d x[3] = {p.row(tri(t, 0)), p.row(tri(t, 1)), p.row(tri(t, 2))};
     const Eigen::Vector3d lo = x[0].cwiseMin(x[1]).cwiseMin(x[2]), hi = x[0].cwiseMax(x[1]).cwiseMax(x[2]);
@@ -45,10 +48,11 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
     item.triangle = t;
     const Eigen::Vector3i first = cellOf(lo);
     for (int a = 0; a < 3; ++a) item.cell[a] = first[a];
+    lastCells_[static_cast<size_t>(t)] = cellOf(hi);
   }
   auto forCells = [&](const CellItem& item, auto&& visit) {
     const Eigen::Vector3i a(item.cell[0], item.cell[1], item.cell[2]);
-    const Eigen::Vector3i b = cellOf(Eigen::Vector3d(item.hi[0], item.hi[1], item.hi[2]));
+    const Eigen::Vector3i& b = lastCells_[static_cast<size_t>(item.triangle)];
     for (int z = a[2]; z <= b[2]; ++z)
       for (int y = a[1]; y <= b[1]; ++y)
         for (int x = a[0]; x <= b[0]; ++x) visit(cellIndex(x, y, z));
@@ -56,8 +60,9 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { ++start_[ci + 1]; });
   for (size_t i = 0; i < cells; ++i) start_[i + 1] += start_[i];
   items_.resize(static_cast<size_t>(start_[cells]));
-  std::vector<int> fill(start_.begin(), start_.end() - 1);
-  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { items_[static_cast<size_t>(fill[ci]++)] = item; });
+  fill_.assign(start_.begin(), start_.end() - 1);
+  for (const CellItem& item : boxes)
+    forCells(item, [&](size_t ci) { items_[static_cast<size_t>(fill_[ci]++)] = item; });
   itemCells_.resize(items_.size());
   for (size_t k = 0; k < items_.size(); ++k) itemCells_[k] = {items_[k].cell[0], items_[k].cell[1], items_[k].cell[2]};
 }
@@ -70,7 +75,14 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
   // within the 3×3×3 block around q's cell; the result is that of scanning the whole block, each cell's triangles by
   // index, keeping the first of equally close ones: the least (distance, key), the key ordering the block's cells in
   // z, y, x order, then the triangles by index.
-  const Eigen::Vector3i c = cellOf(q);
+  // q's cell, and below the cells the ball of the search radius touches, from q's position in cell units (one
+  // division per axis; the ball's cells are found with a slack far above the rounding of that position).
+  double u[3];
+  Eigen::Vector3i c;
+  for (int a = 0; a < 3; ++a) {
+    u[a] = (q[a] - layout_.lo[a]) / layout_.cell;
+    c[a] = clampedCell(u[a], a);
+  }
   auto keyOf = [&](const int cell[3], int t) {
     const Eigen::Vector3i first = Eigen::Vector3i(cell[0], cell[1], cell[2]).cwiseMax(c - Eigen::Vector3i::Ones());
     return cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
@@ -89,9 +101,12 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
       for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
     }
   }
-  const double pad = best.distance * (1 + 1e-9) + 1e-9;  // a superset of the touched cells despite rounding
-  const Eigen::Vector3i from = cellOf((q.array() - pad).matrix()).cwiseMax(c - Eigen::Vector3i::Ones());
-  const Eigen::Vector3i to = cellOf((q.array() + pad).matrix()).cwiseMin(c + Eigen::Vector3i::Ones());
+  const double padCells = (best.distance * (1 + 1e-9) + 1e-9) / layout_.cell;  // a superset of the touched cells
+  Eigen::Vector3i from, to;
+  for (int a = 0; a < 3; ++a) {
+    from[a] = std::max(clampedCell(u[a] - padCells, a), c[a] - 1);
+    to[a] = std::min(clampedCell(u[a] + padCells, a), c[a] + 1);
+  }
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {

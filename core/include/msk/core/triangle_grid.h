@@ -53,6 +53,8 @@ class TriangleGrid {
  private:
   /// The cell holding `x` (clamped to the grid).
   Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
+  /// The cell along axis `a` at `u` cell sizes from the grid's corner, clamped to the grid.
+  int clampedCell(double u, int a) const;
   size_t cellIndex(int x, int y, int z) const;
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
@@ -67,8 +69,10 @@ class TriangleGrid {
   std::vector<CellItem> items_;  ///< each cell's triangles, by index
   /// items_[k].cell, apart: a query's test of whether it meets a triangle in its first scanned cell reads only these
   std::vector<std::array<int, 3>> itemCells_;
-  std::vector<CellItem> boxes_;    ///< build(): each triangle's box (kept to reuse its memory on the next build)
-  mutable std::vector<int> seen_;  ///< closest(): the query that last examined each triangle
+  std::vector<CellItem> boxes_;  ///< build(): each triangle's box (kept to reuse its memory on the next build)
+  std::vector<Eigen::Vector3i> lastCells_;  ///< build(): the cell of each box's highest corner
+  std::vector<int> fill_;                   ///< build(): each cell's next free item
+  mutable std::vector<int> seen_;           ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
 };
 
