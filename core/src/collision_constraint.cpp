@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <thread>
 
 #include "msk/core/error.h"
 #include "msk/core/winding_number.h"
@@ -77,41 +78,57 @@ void CollisionConstraints::resetReference() {
   std::fill(dref_.begin(), dref_.end(), std::numeric_limits<double>::quiet_NaN());
 }
 
-void CollisionConstraints::detect(const Points& p, bool insideTest) {
+void CollisionConstraints::detect(const Points& p, bool insideTest, int threads) {
   contacts_.clear();
   rowLayoutChanged();
   if (surface_->triangles().rows() == 0 || count_ == 0) return;
   if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
-  const WindingNumber* winding = nullptr;  // of B at p (shared with the other sets against B), when a side is needed
   const bool reference = response_.target == CollisionTarget::Reference;
-  for (int v = 0; v < count_; ++v) {
-    const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
-    // The triangle found last time starts the search: between detections a vertex moves a fraction of a triangle.
-    int& hint = hint_[static_cast<size_t>(v)];
-    const SurfacePoint s = surface_->closest(p, q, reach, hint);
-    hint = s.triangle;
-    if (s.triangle < 0) continue;
-    Contact found{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
-    // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
-    // taken to be outside (true when each step starts collision-free), so a correction can never push it through B.
-    // With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
-    // pseudonormal there can point the wrong way and push the vertex through).
-    const Eigen::Vector3d off = q - s.point;
-    if (s.distance > 1e-9 * (1.0 + q.norm())) {
-      if (insideTest && !winding) winding = &surface_->winding(p);
-      const bool inside = insideTest && winding->inside(q);
-      found.normal = (inside ? -1.0 : 1.0) * off / s.distance;
-    } else {  // on the surface: B's outward side
-      const Eigen::Vector3d pseudo = surface_->pseudonormal(p, s);
-      if (!(pseudo.norm() > 1e-12)) continue;
-      found.normal = pseudo.normalized();
+  // The vertices in contiguous ranges, one per thread: each vertex's query reads the positions and B's grid and writes
+  // only its own slots, and the ranges' contacts are joined in vertex order, so the result is the same for any count.
+  auto examine = [&](int begin, int end, std::vector<Contact>& found) {
+    const WindingNumber* winding = nullptr;  // of B at p (shared with the other sets against B), when a side is needed
+    for (int v = begin; v < end; ++v) {
+      const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
+      // The triangle found last time starts the search: between detections a vertex moves a fraction of a triangle.
+      int& hint = hint_[static_cast<size_t>(v)];
+      const SurfacePoint s = surface_->closest(p, q, reach, hint);
+      hint = s.triangle;
+      if (s.triangle < 0) continue;
+      Contact c{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
+      // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
+      // taken to be outside (true when each step starts collision-free), so a correction can never push it through
+      // B. With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
+      // pseudonormal there can point the wrong way and push the vertex through).
+      const Eigen::Vector3d off = q - s.point;
+      if (s.distance > 1e-9 * (1.0 + q.norm())) {
+        if (insideTest && !winding) winding = &surface_->winding(p);
+        const bool inside = insideTest && winding->inside(q);
+        c.normal = (inside ? -1.0 : 1.0) * off / s.distance;
+      } else {  // on the surface: B's outward side
+        const Eigen::Vector3d pseudo = surface_->pseudonormal(p, s);
+        if (!(pseudo.norm() > 1e-12)) continue;
+        c.normal = pseudo.normalized();
+      }
+      // Reference target: the distance of the first detection is the one kept (at least the gap outside).
+      if (reference && std::isnan(dref_[static_cast<size_t>(v)]))
+        dref_[static_cast<size_t>(v)] = std::min(c.pc0.dot(c.normal), -gap_);
+      found.push_back(c);
     }
-    // Reference target: the distance of the first detection is the one kept (at least the gap outside).
-    if (reference && std::isnan(dref_[static_cast<size_t>(v)]))
-      dref_[static_cast<size_t>(v)] = std::min(found.pc0.dot(found.normal), -gap_);
-    contacts_.push_back(found);
+  };
+  const int ranges = std::max(1, std::min(threads, count_ / 1024));
+  if (ranges == 1) {
+    examine(0, count_, contacts_);
+    return;
   }
+  std::vector<std::vector<Contact>> found(static_cast<size_t>(ranges));
+  std::vector<std::thread> pool;
+  for (int r = 1; r < ranges; ++r)
+    pool.emplace_back(examine, r * count_ / ranges, (r + 1) * count_ / ranges, std::ref(found[static_cast<size_t>(r)]));
+  examine(0, count_ / ranges, found[0]);
+  for (std::thread& t : pool) t.join();
+  for (const std::vector<Contact>& part : found) contacts_.insert(contacts_.end(), part.begin(), part.end());
 }
 
 Eigen::Vector3d CollisionConstraints::relative(const Contact& c, const Points& q) const {
@@ -165,11 +182,13 @@ bool CollisionConstraints::row(int r, const Points& p, const Eigen::VectorXd& w,
   return positionRow(c, p, spring, true, out);
 }
 
-void CollisionConstraints::projectPositions(Points& p, const Eigen::VectorXd& w) {
+int CollisionConstraints::projectPositions(Points& p, const Eigen::VectorXd& w) {
   const ContactParameters prm = parameters();
   ConstraintRow r;
+  int corrected = 0;
   for (const Contact& c : contacts_)
-    if (positionRow(c, p, prm, false, r)) applyPbdRow(r, w, p);
+    if (positionRow(c, p, prm, false, r) && applyPbdRow(r, w, p)) ++corrected;
+  return corrected;
 }
 
 void CollisionConstraints::correctBeforePrediction(const Points& x, Points& v, const Eigen::VectorXd& w, double h) {

@@ -42,12 +42,18 @@ CollisionSurface::CollisionSurface(const Triangles& triangles, double reachMm) :
 }
 
 void CollisionSurface::update(const Points& p) {
-  winding_.reset();
   const int nt = static_cast<int>(tri_.rows());
   if (nt == 0) {
+    winding_.reset();
     grid_ = TriangleGrid();
     return;
   }
+  // Nothing to do when the surface's particles are where they were at the last update (as between the collision-only
+  // sweeps of sets whose corrections did not touch this surface): the grid and winding number stay valid.
+  const Eigen::Index rows = idxHi_ - idxLo_ + 1;
+  if (p.rows() > idxHi_ && built_.rows() == rows && built_ == p.middleRows(idxLo_, rows)) return;
+  winding_.reset();
+  if (p.rows() > idxHi_) built_ = p.middleRows(idxLo_, rows);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   double extent = 0;
   for (int t = 0; t < nt; ++t) {
@@ -61,7 +67,8 @@ void CollisionSurface::update(const Points& p) {
   TriangleGrid::Layout layout;
   layout.lo = lo.array() - reach_;
   boxHi_ = hi.array() + reach_;
-  layout.cell = std::max(reach_, extent / nt);
+  meanEdge_ = extent / nt;
+  layout.cell = std::max(reach_, meanEdge_);
   const Eigen::Vector3d size = boxHi_ - layout.lo;
   while ((size / layout.cell).array().ceil().prod() > 4e6) layout.cell *= 1.5;
   layout.dims = (size / layout.cell).array().floor().cast<int>() + 1;
@@ -121,7 +128,10 @@ Eigen::Vector3d CollisionSurface::pseudonormal(const Points& p, const SurfacePoi
 
 const WindingNumber& CollisionSurface::winding(const Points& p) const {
   std::lock_guard<std::mutex> lock(windingMutex_);
-  if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_);
+  // Clusters of about one edge: built at the current positions (no stale far field), and the near field summed
+  // triangle by triangle is a quarter of that with the default clusters of two edges (the side tests of a step about
+  // 30 % faster on the 24-structure scene).
+  if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_, meanEdge_);
   return *winding_;
 }
 

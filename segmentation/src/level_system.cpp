@@ -1,6 +1,7 @@
 // One pass's particle system: every object's particles stacked (tets, surface; then the medial axes), masses, sets and
 // the collision sets of the scene's pairs.
 #include <algorithm>
+#include <thread>
 
 #include "parallel_each.h"
 #include "segment_stages.h"
@@ -119,20 +120,27 @@ void LevelSystem::detectContacts(const Points& p, bool sideTest, int threads) {
   detectAll(collide_, p, sideTest, threads);
 }
 
-void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene) {
+void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads) {
+  threads = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (int sweep = 0; sweep < sweeps; ++sweep) {
+    int corrected = 0;
     for (size_t k = 0; k < collide_.size(); ++k) {
       if (collide_[k]->response().resolution != CollisionResolution::Sequential) continue;
-      // Positions change with every projection here: the partner's grid is rebuilt before each detection.
+      // Positions change with every projection here: the partner's grid is rebuilt before each detection (update()
+      // keeps it if the partner has not moved).
       const CollisionPair& pair = scene.collisions[k / 2];
       surfaces_.at(static_cast<size_t>(k % 2 == 0 ? pair.b : pair.a))->update(p);
-      collide_[k]->detect(p, sweep == 0);
-      collide_[k]->projectPositions(p, w);
+      collide_[k]->detect(p, sweep == 0, threads);
+      corrected += collide_[k]->projectPositions(p, w);
     }
-    if (global_.empty()) continue;
+    if (global_.empty()) {
+      // A sweep that corrected nothing left the positions as they were: every further sweep would repeat it.
+      if (corrected == 0) break;
+      continue;
+    }
     for (auto& kv : surfaces_) kv.second->update(p);
     for (auto& c : collide_)
-      if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0);
+      if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0, threads);
     for (auto& kv : global_) kv.second->projectPositions(p, w);
   }
 }

@@ -194,8 +194,9 @@ class LevelSystem {
   /// result does not depend on it), with the inside test when `sideTest`.
   void detectContacts(const Points& p, bool sideTest, int threads);
   /// Collision-only sweeps on `p` after the last step (position corrections with each pair's target whatever its mode):
-  /// sequential pairs one set after the other, then the global pairs solved together.
-  void cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene);
+  /// sequential pairs one set after the other (each set's detection on `threads` threads, 0 = all cores, the result
+  /// the same for any number), then the global pairs solved together; it stops early once a sweep corrects nothing.
+  void cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads);
 
  private:
   std::vector<ObjectState>& objs_;

@@ -51,8 +51,9 @@ class CollisionConstraints : public ConstraintSet {
   /// Finds, for every vertex of A, the closest point of B within gap + proximity at positions `p`. With `insideTest`
   /// the side comes from B's winding number (right even where B folds); without it every vertex is taken to be
   /// outside B, which is exact when the positions are collision-free and costs nothing (use the test where overlaps
-  /// may already exist: first step of a level, clean-up sweeps, reports).
-  void detect(const Points& p, bool insideTest = true);
+  /// may already exist: first step of a level, clean-up sweeps, reports). `threads` > 1 splits A's vertices over that
+  /// many threads (sets of at least 1024 vertices a thread), with the same result.
+  void detect(const Points& p, bool insideTest = true, int threads = 1);
   /// One row per contact of the last detect(): position mode with sequential resolution, the contact's position
   /// change toward the set's target; velocity and acceleration modes, the spring position correction of a contact
   /// whose vertex is more than response().positionBeyondMm inside the partner (none when that is +inf); position mode
@@ -65,8 +66,8 @@ class CollisionConstraints : public ConstraintSet {
   /// Velocity mode, sequential: each contact's velocity change Ṽc − Vc shared in turn.
   void correctVelocities(const Points& x, Points& v, const Eigen::VectorXd& w, double h) override;
   /// Position correction of every contact in turn with the set's target, whatever its mode and resolution (clean-up
-  /// sweeps).
-  void projectPositions(Points& p, const Eigen::VectorXd& w);
+  /// sweeps). Returns the number of contacts corrected (0: `p` is unchanged).
+  int projectPositions(Points& p, const Eigen::VectorXd& w);
   /// The contacts linearised for a global solve in `mode` at positions `x` and velocities `v` (substep `h`), appended
   /// to `rows` (only contacts with something to correct).
   void appendRows(CollisionMode mode, const Points& x, const Points& v, double h, std::vector<ContactRow>& rows) const;

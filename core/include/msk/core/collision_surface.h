@@ -19,7 +19,8 @@ class CollisionSurface {
  public:
   /// `triangles` (outward, closed) index particles of the stacked system; queries reach `reachMm` (> 0).
   CollisionSurface(const Triangles& triangles, double reachMm);
-  /// Rebuilds the grid over the triangles at positions `p` (call once per step, before the queries).
+  /// Rebuilds the grid over the triangles at positions `p` (call once per step, before the queries); keeps it, and the
+  /// winding number, if the surface's particles have not moved since the last update().
   void update(const Points& p);
   /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update();
   /// `hint` a triangle likely to be it (TriangleGrid::closestWithin(), the same answer with or without).
@@ -48,6 +49,8 @@ class CollisionSurface {
   std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
   TriangleGrid grid_;                                ///< over the triangles at the positions of the last update()
   Eigen::Vector3d boxHi_ = Eigen::Vector3d::Zero();  ///< the upper corner of the grid's box (the lower is its layout's)
+  Points built_;                                     ///< the particles [idxLo_, idxHi_] at the last update()
+  double meanEdge_ = 0;                              ///< mean length of the triangles' first edges at the last update()
   mutable std::unique_ptr<WindingNumber> winding_;   ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;
 };
