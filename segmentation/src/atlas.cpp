@@ -267,14 +267,15 @@ TriangleMesh moved(const TriangleMesh& m, const Eigen::Matrix4d& t) {
   return out;
 }
 
-/// The registration of one object's neighbourhood, from the global placement; kept only under the conditions of
-/// placeAtlas().
-ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const ImageF& subject, const Placement& global,
-                            const RegistrationOptions& base, const PlacementOptions& opts) {
+/// The registration of one object's neighbourhood, from `start` (the global placement, or for a muscle the placement
+/// of the bone it lies on); kept only under the conditions of placeAtlas(). Its move is measured from `start`.
+ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const ImageF& subject,
+                            const Eigen::Matrix4d& start, const RegistrationOptions& base,
+                            const PlacementOptions& opts) {
   const auto t0 = Clock::now();
   ObjectPlacement op;
   op.name = obj.name;
-  op.transform = global.global;
+  op.transform = start;
   const auto box = meshBox(obj.templ);
   const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.objectMarginMm);
   const Eigen::Vector3d centre = 0.5 * (box[0] + box[1]);
@@ -283,16 +284,16 @@ ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const Im
     RegistrationOptions ro = base;
     ro.model = PriorTransform::Similarity;
     ro.initialise = false;
-    const RegistrationResult r = registerImages(neighbourhood, subject, ro, global.global);
+    const RegistrationResult r = registerImages(neighbourhood, subject, ro, start);
     op.metricBefore = r.startMetric;
     op.metricAfter = r.metric;
-    const TransformDifference d = transformDifference(r.transform, global.global, centre);
+    const TransformDifference d = transformDifference(r.transform, start, centre);
     op.moveDegrees = d.degrees;
     op.moveMm = d.mm;
     if (!(r.metric > r.startMetric))
       op.note = "its own registration did not improve its neighbourhood's match";
     else if (d.degrees > 30 || d.mm > 30)
-      op.note = "its own registration moved it too far from the global placement";
+      op.note = "its own registration moved it too far from its start";
     else {
       op.transform = r.transform;
       op.registered = true;
@@ -304,10 +305,10 @@ ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const Im
   return op;
 }
 
-/// Pulls objects back toward the global placement (their own move halved, up to three times, then undone), the one
-/// that moved most first, until no scene pair reaches into each other deeper than under the global placement: the
-/// share of either surface's vertices inside the other may grow by at most 0.5 %. Records each pair's figures.
-void keepPairsApart(const Atlas& atlas, Placement& p) {
+/// Pulls objects back toward their start placements `start` (their own move halved, up to three times, then undone),
+/// the one that moved most first, until no scene pair reaches into each other deeper than under the start placements:
+/// the share of either surface's vertices inside the other may grow by at most 0.5 %. Records each pair's figures.
+void keepPairsApart(const Atlas& atlas, Placement& p, const std::vector<Eigen::Matrix4d>& start) {
   const Scene& scene = atlas.scene;
   std::vector<Eigen::Matrix4d> own;
   std::vector<double> share(p.objects.size(), 1.0);  // how much of its own move each object keeps
@@ -320,15 +321,17 @@ void keepPairsApart(const Atlas& atlas, Placement& p) {
     pp.a = scene.objects[ia].name;
     pp.b = scene.objects[ib].name;
     pp.overlapGlobal = pairOverlap(moved(scene.objects[ia].templ, p.global), moved(scene.objects[ib].templ, p.global));
+    const double allowed =
+        pairOverlap(moved(scene.objects[ia].templ, start[ia]), moved(scene.objects[ib].templ, start[ib])) + 0.005;
     pp.overlapPlaced = pairOverlap(placed(ia), placed(ib));
-    while (pp.overlapPlaced > pp.overlapGlobal + 0.005 && (p.objects[ia].registered || p.objects[ib].registered)) {
+    while (pp.overlapPlaced > allowed && (p.objects[ia].registered || p.objects[ib].registered)) {
       const bool pickA =
           p.objects[ia].registered &&
           (!p.objects[ib].registered || share[ia] * p.objects[ia].moveMm >= share[ib] * p.objects[ib].moveMm);
       const size_t i = pickA ? ia : ib;
       ObjectPlacement& o = p.objects[i];
       share[i] = share[i] > 0.2 ? 0.5 * share[i] : 0.0;
-      o.transform = p.global + share[i] * (own[i] - p.global);
+      o.transform = start[i] + share[i] * (own[i] - start[i]);
       if (share[i] == 0.0) {
         o.registered = false;
         o.note = "its own registration brought it into a collision partner";
@@ -340,6 +343,47 @@ void keepPairsApart(const Atlas& atlas, Placement& p) {
     }
     p.pairs.push_back(pp);
   }
+}
+
+/// The start of each object's own registration: the global placement, but for a muscle whose one bone partner's own
+/// registration was kept, that bone's placement (the muscles on a bone turn with it, as a limb turns about its bone).
+/// Muscles carried by a bone keep their places relative to one another; a muscle that a bone's placement would push
+/// into a partner deeper than the global placement does starts from the global placement.
+std::vector<Eigen::Matrix4d> startPlacements(const Atlas& atlas, Placement& p) {
+  const Scene& scene = atlas.scene;
+  const size_t n = scene.objects.size();
+  std::vector<Eigen::Matrix4d> start(n, p.global);
+  for (size_t i = 0; i < n; ++i) {
+    if (scene.objects[i].kind != ObjectKind::Muscle) continue;
+    std::vector<size_t> bones;
+    for (const CollisionPair& pair : scene.collisions) {
+      const size_t other = pair.a == static_cast<int>(i)   ? static_cast<size_t>(pair.b)
+                           : pair.b == static_cast<int>(i) ? static_cast<size_t>(pair.a)
+                                                           : n;
+      if (other < n && scene.objects[other].kind == ObjectKind::Bone) bones.push_back(other);
+    }
+    if (bones.size() == 1 && p.objects[bones[0]].registered) {
+      start[i] = p.objects[bones[0]].transform;
+      p.objects[i].carriedBy = scene.objects[bones[0]].name;
+    }
+  }
+  for (const CollisionPair& pair : scene.collisions) {
+    const size_t ia = static_cast<size_t>(pair.a), ib = static_cast<size_t>(pair.b);
+    const TriangleMesh ga = moved(scene.objects[ia].templ, p.global), gb = moved(scene.objects[ib].templ, p.global);
+    const Eigen::Matrix4d& sa = scene.objects[ia].kind == ObjectKind::Muscle ? start[ia] : p.global;
+    const Eigen::Matrix4d& sb = scene.objects[ib].kind == ObjectKind::Muscle ? start[ib] : p.global;
+    const Eigen::Matrix4d& pa = scene.objects[ia].kind == ObjectKind::Muscle ? sa : p.objects[ia].transform;
+    const Eigen::Matrix4d& pb = scene.objects[ib].kind == ObjectKind::Muscle ? sb : p.objects[ib].transform;
+    if (pairOverlap(moved(scene.objects[ia].templ, pa), moved(scene.objects[ib].templ, pb)) <=
+        pairOverlap(ga, gb) + 0.005)
+      continue;
+    for (size_t i : {ia, ib})
+      if (!p.objects[i].carriedBy.empty()) {
+        start[i] = p.global;
+        p.objects[i].carriedBy.clear();
+      }
+  }
+  return start;
 }
 
 }  // namespace
@@ -362,20 +406,29 @@ Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementO
     p.registration = registerImages(*atlas.reference, subject, global, p.global);
     p.global = p.registration->transform;
   }
-  for (size_t i = 0; i < atlas.scene.objects.size(); ++i) {
+  // Bones first, each from the global placement; then the other objects, each from its start (startPlacements()).
+  const size_t n = atlas.scene.objects.size();
+  p.objects.resize(n);
+  int done = 0;
+  auto place = [&](size_t i, const Eigen::Matrix4d& start) {
     const SceneObject& obj = atlas.scene.objects[i];
-    if (progress)
-      progress(0.5 + 0.5 * static_cast<double>(i) / static_cast<double>(atlas.scene.objects.size()), obj.name);
+    if (progress) progress(0.5 + 0.5 * static_cast<double>(done++) / static_cast<double>(n), obj.name);
     if (opts.registration && opts.perObject) {
-      p.objects.push_back(placeObject(atlas, obj, subject, p, ro, opts));
+      const std::string carriedBy = p.objects[i].carriedBy;
+      p.objects[i] = placeObject(atlas, obj, subject, start, ro, opts);
+      p.objects[i].carriedBy = carriedBy;
     } else {
-      ObjectPlacement op;
-      op.name = obj.name;
-      op.transform = p.global;
-      p.objects.push_back(op);
+      p.objects[i].name = obj.name;
+      p.objects[i].transform = start;
     }
-  }
-  keepPairsApart(atlas, p);
+  };
+  for (size_t i = 0; i < n; ++i)
+    if (atlas.scene.objects[i].kind == ObjectKind::Bone) place(i, p.global);
+  std::vector<Eigen::Matrix4d> start(n, p.global);
+  if (opts.registration && opts.perObject) start = startPlacements(atlas, p);
+  for (size_t i = 0; i < n; ++i)
+    if (atlas.scene.objects[i].kind != ObjectKind::Bone) place(i, start[i]);
+  keepPairsApart(atlas, p, start);
   p.seconds = since(t0);
   if (progress) progress(1.0, "done");
   return p;
@@ -401,8 +454,9 @@ void judgePlacement(const Placement& placement, SegmentationResult& result) {
     if (!o.keptOutOfPartner || o.moveDegrees <= kDoubtfulRefusedTurnDegrees) continue;
     ObjectQuality& q = result.objects[i].quality;
     q.status = worseStatus(q.status, QualityStatus::Doubtful);
-    q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) +
-                        " degrees from the global placement, more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
+    const std::string from = o.carriedBy.empty() ? "the global placement" : "where " + o.carriedBy + " placed it";
+    q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) + " degrees from " +
+                        from + ", more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
                         ", and was undone because it ran into a collision partner");
     result.status = worseStatus(result.status, q.status);
   }
@@ -442,8 +496,9 @@ Json placementJson(const Placement& placement) {
     oj["atlas_to_subject_ras"] = matrixJson(o.transform);
     oj["metric_before"] = o.metricBefore;
     oj["metric_after"] = o.metricAfter;
-    oj["move_from_global_degrees"] = o.moveDegrees;
-    oj["move_from_global_mm"] = o.moveMm;
+    oj["started_from"] = o.carriedBy.empty() ? std::string("global placement") : o.carriedBy;
+    oj["own_move_degrees"] = o.moveDegrees;
+    oj["own_move_mm"] = o.moveMm;
     oj["scale"] = std::cbrt(std::abs(o.transform.topLeftCorner<3, 3>().determinant()));
     oj["seconds"] = o.seconds;
     objects.push_back(oj);
