@@ -367,21 +367,26 @@ std::vector<Eigen::Matrix4d> startPlacements(const Atlas& atlas, Placement& p) {
       p.objects[i].carriedBy = scene.objects[bones[0]].name;
     }
   }
-  for (const CollisionPair& pair : scene.collisions) {
-    const size_t ia = static_cast<size_t>(pair.a), ib = static_cast<size_t>(pair.b);
-    const TriangleMesh ga = moved(scene.objects[ia].templ, p.global), gb = moved(scene.objects[ib].templ, p.global);
-    const Eigen::Matrix4d& sa = scene.objects[ia].kind == ObjectKind::Muscle ? start[ia] : p.global;
-    const Eigen::Matrix4d& sb = scene.objects[ib].kind == ObjectKind::Muscle ? start[ib] : p.global;
-    const Eigen::Matrix4d& pa = scene.objects[ia].kind == ObjectKind::Muscle ? sa : p.objects[ia].transform;
-    const Eigen::Matrix4d& pb = scene.objects[ib].kind == ObjectKind::Muscle ? sb : p.objects[ib].transform;
-    if (pairOverlap(moved(scene.objects[ia].templ, pa), moved(scene.objects[ib].templ, pb)) <=
-        pairOverlap(ga, gb) + 0.005)
-      continue;
-    for (size_t i : {ia, ib})
-      if (!p.objects[i].carriedBy.empty()) {
-        start[i] = p.global;
-        p.objects[i].carriedBy.clear();
-      }
+  // Bones are where their own registrations put them, the others at their starts. A carried muscle in a pair that
+  // reaches deeper than under the global placement goes back to it, until no pair does (each muscle at most once).
+  auto at = [&](size_t i) {
+    return moved(scene.objects[i].templ, scene.objects[i].kind == ObjectKind::Bone ? p.objects[i].transform : start[i]);
+  };
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (const CollisionPair& pair : scene.collisions) {
+      const size_t ia = static_cast<size_t>(pair.a), ib = static_cast<size_t>(pair.b);
+      if (p.objects[ia].carriedBy.empty() && p.objects[ib].carriedBy.empty()) continue;
+      const double global =
+          pairOverlap(moved(scene.objects[ia].templ, p.global), moved(scene.objects[ib].templ, p.global));
+      if (pairOverlap(at(ia), at(ib)) <= global + 0.005) continue;
+      for (size_t i : {ia, ib})
+        if (!p.objects[i].carriedBy.empty()) {
+          start[i] = p.global;
+          p.objects[i].carriedBy.clear();
+          changed = true;
+        }
+    }
   }
   return start;
 }
