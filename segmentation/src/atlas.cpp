@@ -321,8 +321,11 @@ void keepPairsApart(const Atlas& atlas, Placement& p, const std::vector<Eigen::M
     pp.a = scene.objects[ia].name;
     pp.b = scene.objects[ib].name;
     pp.overlapGlobal = pairOverlap(moved(scene.objects[ia].templ, p.global), moved(scene.objects[ib].templ, p.global));
-    const double allowed =
-        pairOverlap(moved(scene.objects[ia].templ, start[ia]), moved(scene.objects[ib].templ, start[ib])) + 0.005;
+    const bool fromGlobal = start[ia] == p.global && start[ib] == p.global;
+    const double allowed = (fromGlobal ? pp.overlapGlobal
+                                       : pairOverlap(moved(scene.objects[ia].templ, start[ia]),
+                                                     moved(scene.objects[ib].templ, start[ib]))) +
+                           0.005;
     pp.overlapPlaced = pairOverlap(placed(ia), placed(ib));
     while (pp.overlapPlaced > allowed && (p.objects[ia].registered || p.objects[ib].registered)) {
       const bool pickA =

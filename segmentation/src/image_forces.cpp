@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <thread>
 
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
@@ -545,9 +544,8 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
   out.scores = Eigen::VectorXd::Zero(nv);
   const bool focusing = focus && !profileMode && focus->sigmaMm < features.sigmaMm;
   // The vertices in one contiguous range per thread, each with its own samplers and scratch.
-  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
   const size_t ranges = std::max<size_t>(
-      1, std::min<size_t>(opts.threads > 0 ? static_cast<size_t>(opts.threads) : cores, static_cast<size_t>(nv) / 256));
+      1, std::min<size_t>(static_cast<size_t>(detail::threadCount(opts.threads)), static_cast<size_t>(nv) / 256));
   detail::parallelEach(ranges, static_cast<int>(ranges), [&](size_t k) {
     LineSampler sampler(features.smoothed);
     LineSampler fineSampler(focusing ? focus->smoothed : features.smoothed);

@@ -1,7 +1,6 @@
 // One pass's particle system: every object's particles stacked (tets, surface; then the medial axes), masses, sets and
 // the collision sets of the scene's pairs.
 #include <algorithm>
-#include <thread>
 
 #include "parallel_each.h"
 #include "segment_stages.h"
@@ -121,7 +120,7 @@ void LevelSystem::detectContacts(const Points& p, bool sideTest, int threads) {
 }
 
 void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads) {
-  threads = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  threads = threadCount(threads);
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     int corrected = 0;
     for (size_t k = 0; k < collide_.size(); ++k) {

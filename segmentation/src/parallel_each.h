@@ -11,13 +11,17 @@
 
 namespace msk::detail {
 
+/// The threads a `threads` setting means: itself if positive, else all cores (at least 1).
+inline int threadCount(int threads) {
+  return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 /// Calls work(k) for every k in [0, n) on `threads` threads (0 = all cores; the caller is one of them), handing the
 /// items out one at a time. Once all threads have stopped, the exception of the lowest item that threw is rethrown (the
 /// one a single thread would have met first).
 template <typename Work>
 void parallelEach(size_t n, int threads, Work&& work) {
-  const size_t cores = std::max(1u, std::thread::hardware_concurrency());
-  const size_t workers = std::min(n, threads > 0 ? static_cast<size_t>(threads) : cores);
+  const size_t workers = std::min(n, static_cast<size_t>(threadCount(threads)));
   if (workers <= 1) {
     for (size_t k = 0; k < n; ++k) work(k);
     return;

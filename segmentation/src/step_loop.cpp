@@ -1,7 +1,6 @@
 // The step loop of one pass, and what a pass hands back to each object.
 #include <algorithm>
 #include <string>
-#include <thread>
 
 #include "msk/core/error.h"
 #include "parallel_each.h"
@@ -25,6 +24,9 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
   // Positions at the start of the last two windows of kSettleWindow steps, for each object's drift at the end.
   Points windowStart, lastWindowStart;
   int windowStep = -1, lastWindowStep = -1;
+  const int threads = threadCount(opts.evolution.threads);
+  const int moving = static_cast<int>(std::count(fixed.begin(), fixed.end(), 0));
+  const int threadsPerObject = std::max(1, threads / std::max(1, moving));
   for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
     if (s % kSettleWindow == 0) {
       lastWindowStart.swap(windowStart);
@@ -35,14 +37,10 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
     const double runFraction = std::min(1.0, static_cast<double>(stepsDone) / std::max(1, rampSteps - 1));
     // Each object's image search reads the shared image features and writes only its own targets: on the run's
     // threads, the same for any number of them; threads that objects leave free search the vertices of an object.
-    const int free = static_cast<int>(std::count(fixed.begin(), fixed.end(), 0));
-    const int threads = opts.evolution.threads > 0
-                            ? opts.evolution.threads
-                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     parallelEach(objs.size(), threads, [&](size_t i) {
       if (fixed[i]) return;
       ObjectState& st = objs[i];
-      st.search.threads = std::max(1, threads / std::max(1, free));
+      st.search.threads = threadsPerObject;
       if (st.prior) st.prior->setLambda(shape.priorStart + (shape.priorEnd - shape.priorStart) * runFraction);
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
       const ImageTargets found = imageTargets(st, st.current, opts, feat, grid, focus);
