@@ -52,6 +52,13 @@ int cmdPhantom(const std::vector<std::string>& argv) {
       ->type_name("AX,AY,AZ,TX,TY,TZ[,S]");
   addNumber(app, "--noise", opts.noise, "Rician noise sigma, fraction of fat (default 0.03)");
   addNumber(app, "--bias", opts.bias, "multiplicative bias field amplitude (default 0.15)");
+  std::vector<double> fovZ;
+  app.add_option("--fov-z", fovZ,
+                 "the field of view's z range in world mm (along the grid's third axis if oblique), as a short scan "
+                 "cuts the anatomy: the femur and muscles end at the cut (default: the whole limb)")
+      ->delimiter(',')
+      ->expected(2)
+      ->type_name("LO,HI");
   app.add_option("--vertices", opts.meshVertices, "vertices of each truth and template mesh (default 3000)");
   addMeshSpace(app, opts.meshSpace, "space of the mesh files, tagged: lps (default) or ras");
   app.add_option("--structures", structures,
@@ -59,6 +66,7 @@ int cmdPhantom(const std::vector<std::string>& argv) {
                  "lower legs, each a bone wrapped by five muscles");
   if (!parseArgs(app, argv)) return 0;
   if (!pose.empty()) opts.pose = parsePose(pose);
+  if (!fovZ.empty()) opts.fovZ = Eigen::Vector2d(fovZ[0], fovZ[1]);
   if (structures != 4 && structures != kMultiPhantomStructures)
     throw ParameterError(
         "--structures", std::to_string(structures),

@@ -203,7 +203,7 @@ Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress)
 
   Phantom ph;
   ph.generator = "mskseg-multi-phantom";
-  const Grid grid = phantom::coveringGrid(opts.spacing, opts.obliqueDegrees, kFovLo, kFovHi, opts.pose);
+  const Grid grid = phantom::coveringGrid(opts.spacing, opts.obliqueDegrees, kFovLo, kFovHi, opts.pose, opts.fovZ);
   ph.image = ImageF(grid);
   ph.labels = LabelMap(grid);
   ph.tissues = LabelMap(grid);

@@ -40,7 +40,7 @@ constexpr int kObjectCount = 4;
 // The image grid: given spacing and rotation, covering the fixed world box moved by the pose (centred on it).
 Grid phantomGrid(const PhantomOptions& o) {
   return phantom::coveringGrid(o.spacing, o.obliqueDegrees, Eigen::Vector3d(-kFovHalfXY, -kFovHalfXY, -kFovHalfZ),
-                               Eigen::Vector3d(kFovHalfXY, kFovHalfXY, kFovHalfZ), o.pose);
+                               Eigen::Vector3d(kFovHalfXY, kFovHalfXY, kFovHalfZ), o.pose, o.fovZ);
 }
 
 // Samples object `object` of `model` on an axis-aligned grid of step h around its bounding box. Far from the
@@ -213,6 +213,7 @@ void writePhantom(const Phantom& phantom, const PhantomOptions& opts, const std:
   params["pose"] = phantomPoseJson(opts.pose);
   params["noise"] = opts.noise;
   params["bias"] = opts.bias;
+  if (opts.fovZ) params["fovZ"] = Json::array({(*opts.fovZ)[0], (*opts.fovZ)[1]});
   params["meshVertices"] = opts.meshVertices;
   params["meshSpace"] = meshSpaceName(opts.meshSpace);
   Scene scene = phantomScene(phantom, dir);

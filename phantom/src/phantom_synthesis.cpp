@@ -86,6 +86,9 @@ void checkPhantomOptions(const PhantomOptions& o) {
     throw ParameterError("--noise", num(o.noise), "must be in [0, 1] (fraction of fat intensity)");
   if (!std::isfinite(o.bias) || o.bias < 0 || o.bias >= 1)
     throw ParameterError("--bias", num(o.bias), "must be in [0, 1)");
+  if (o.fovZ && !(o.fovZ->allFinite() && (*o.fovZ)[0] < (*o.fovZ)[1] && o.fovZ->cwiseAbs().maxCoeff() <= 1000))
+    throw ParameterError("--fov-z", std::to_string((*o.fovZ)[0]) + "," + std::to_string((*o.fovZ)[1]),
+                         "must be two finite numbers lo < hi within ±1000 mm");
   if (o.meshVertices < 100 || o.meshVertices > 1000000)
     throw ParameterError("--vertices", std::to_string(o.meshVertices), "must be in [100, 1000000]");
   if (!std::isfinite(o.meshSpacingMm) || o.meshSpacingMm < 0.2 || o.meshSpacingMm > 3)
@@ -104,7 +107,7 @@ uint32_t streamSeed(uint32_t seed, uint32_t stream) {
 }
 
 Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& obliqueDegrees, const Eigen::Vector3d& boxLo,
-                  const Eigen::Vector3d& boxHi, const PhantomPose& pose) {
+                  const Eigen::Vector3d& boxHi, const PhantomPose& pose, const std::optional<Eigen::Vector2d>& slab) {
   Grid g;
   g.spacing = spacing;
   g.direction = Grid::rotationXYZ(obliqueDegrees);
@@ -118,6 +121,14 @@ Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& oblique
     const Eigen::Vector3d v = g.direction.transpose() * posed;
     lo = lo.cwiseMin(v);
     hi = hi.cwiseMax(v);
+  }
+  if (slab) {
+    lo[2] = std::max(lo[2], (*slab)[0]);
+    hi[2] = std::min(hi[2], (*slab)[1]);
+    if (!(lo[2] < hi[2]))
+      throw ParameterError("--fov-z", std::to_string((*slab)[0]) + "," + std::to_string((*slab)[1]),
+                           "leaves nothing of the phantom's field of view (" + std::to_string(lo[2]) + " to " +
+                               std::to_string(hi[2]) + " mm before the cut)");
   }
   for (int a = 0; a < 3; ++a) {
     g.dims[a] = static_cast<int>(std::ceil((hi[a] - lo[a]) / g.spacing[a] - 1e-9)) + 1;

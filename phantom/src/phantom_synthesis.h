@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <optional>
 
 #include "msk/imaging/volume.h"
 #include "msk/phantom/phantom.h"
@@ -23,9 +24,12 @@ constexpr double kFatIntensity = 1000;
 uint32_t streamSeed(uint32_t seed, uint32_t stream);
 
 /// The image grid with voxel size `spacing` (mm) rotated by `obliqueDegrees` (about x, y, z) that covers the world box
-/// [lo, hi] (RAS mm) mapped by `pose` (its eight corners), centred on the mapped box.
+/// [lo, hi] (RAS mm) mapped by `pose` (its eight corners), centred on the mapped box. `slab` (PhantomOptions::fovZ)
+/// limits it along the grid's third axis to the world coordinates [slab₀, slab₁] along that axis (world z unless the
+/// grid is oblique), as a scanner's slab cuts the anatomy; ParameterError if nothing is left.
 Grid coveringGrid(const Eigen::Vector3d& spacing, const Eigen::Vector3d& obliqueDegrees, const Eigen::Vector3d& lo,
-                  const Eigen::Vector3d& hi, const PhantomPose& pose = {});
+                  const Eigen::Vector3d& hi, const PhantomPose& pose = {},
+                  const std::optional<Eigen::Vector2d>& slab = std::nullopt);
 
 /// The grid P⁻¹(`image`) of the un-posed anatomy for pose P: origin P⁻¹(origin), direction R⁻¹·direction, spacing
 /// spacing / s, so that its voxel (i, j, k) is the point of the un-posed anatomy that P moves to voxel (i, j, k) of

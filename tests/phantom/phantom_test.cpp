@@ -11,6 +11,7 @@
 
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"
+#include "msk/imaging/filters.h"
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
@@ -368,6 +369,8 @@ TEST(Phantom, InvalidOptionsThrowAndWriteNothing) {
   add([](PhantomOptions& o) { o.bias = -0.1; });
   add([](PhantomOptions& o) { o.obliqueDegrees[2] = INFINITY; });
   add([](PhantomOptions& o) { o.meshVertices = 10; });
+  add([](PhantomOptions& o) { o.fovZ = Eigen::Vector2d(20, 10); });
+  add([](PhantomOptions& o) { o.fovZ = Eigen::Vector2d(NAN, 10); });
   for (const PhantomOptions& o : bad) {
     EXPECT_THROW(msk::makePhantom(o), msk::ParameterError);
     EXPECT_THROW(msk::writePhantom(meshed(), o, out), msk::ParameterError);
@@ -376,6 +379,48 @@ TEST(Phantom, InvalidOptionsThrowAndWriteNothing) {
   // A phantom generated without meshes cannot be written as a scene.
   EXPECT_THROW(msk::writePhantom(msk::makePhantom(coarse(1)), coarse(1), out), msk::Error);
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+// A short scan: --fov-z keeps the slab of world z it names; the femur and muscles run out of it (cut, as a real
+// scan cuts them) with the same labels inside it as the whole phantom's, and posed phantoms are cut in world z too.
+// A slab that leaves nothing of the phantom's field of view is refused.
+TEST(Phantom, FieldOfViewInZCutsTheAnatomy) {
+  PhantomOptions whole = coarse(2), cut = coarse(2);
+  cut.fovZ = Eigen::Vector2d(-30, 40);
+  const Phantom w = msk::makePhantom(whole), c = msk::makePhantom(cut);
+  const msk::Grid& g = c.labels.grid;
+  const auto box = g.worldBounds();
+  EXPECT_GE(box[0].z(), -30 - g.spacing.z());
+  EXPECT_LE(box[1].z(), 40 + g.spacing.z());
+  EXPECT_LT(box[1].z() - box[0].z(), 70 + 2 * g.spacing.z());
+  // Every object runs through both ends of the slab (cut), and the labels are the whole phantom's there (the grids'
+  // lattices differ by a fraction of a voxel: the nearest voxel's label, the same but at a few boundary voxels).
+  size_t labelled = 0, differing = 0;
+  std::set<int32_t> atBottom, atTop;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const int32_t l = c.labels.at(i, j, k);
+        if (k == 0) atBottom.insert(l);
+        if (k == g.dims[2] - 1) atTop.insert(l);
+        if (l == 0) continue;
+        ++labelled;
+        differing += msk::sampleNearest(w.labels, g.toWorld(Eigen::Vector3d(i, j, k))).value_or(-1) != l;
+      }
+  EXPECT_GT(labelled, g.voxelCount() / 10);
+  EXPECT_LT(differing, labelled / 20);
+  for (int32_t l : {1, 2, 3, 4}) {
+    EXPECT_TRUE(atBottom.count(l)) << "label " << l;
+    EXPECT_TRUE(atTop.count(l)) << "label " << l;
+  }
+  PhantomOptions posed = cut;
+  posed.pose.rotationDegrees = Eigen::Vector3d(10, 0, 0);
+  const auto posedBox = msk::makePhantom(posed).labels.grid.worldBounds();
+  EXPECT_GE(posedBox[0].z(), -30 - g.spacing.z());
+  EXPECT_LE(posedBox[1].z(), 40 + g.spacing.z());
+  PhantomOptions empty = coarse(2);
+  empty.fovZ = Eigen::Vector2d(400, 500);
+  EXPECT_THROW(msk::makePhantom(empty), msk::ParameterError);
 }
 
 TEST(Phantom, WritePhantomWritesImageLabelsMeshesAndScene) {

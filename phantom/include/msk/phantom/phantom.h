@@ -2,6 +2,7 @@
 /// Synthetic T1-weighted thigh MRI with exact ground truth (femur, muscle compartments, fat, skin).
 #include <Eigen/Core>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,14 +23,17 @@ struct PhantomOptions {
   PhantomPose pose;                                          ///< moves the anatomy, not the templates (default: none)
   double noise = 0.03;                                       ///< Rician noise sigma, fraction of fat intensity
   double bias = 0.15;                                        ///< bias field amplitude (0 = none, fraction)
+  /// z range (mm, lo < hi) of the un-posed field of view, clipped to the phantom's own (which holds the whole
+  /// anatomy): a shorter range cuts bones and muscles as a short scan does. Unset: the phantom's own range.
+  std::optional<Eigen::Vector2d> fovZ;
   bool meshes = true;          ///< compute truth and template meshes (false: image, labels and tissues only; faster)
   int meshVertices = 3000;     ///< target vertex count of each truth and template mesh
   double meshSpacingMm = 0.8;  ///< step of the fine grid on which the implicit surfaces are sampled for meshing
   MeshSpace meshSpace = MeshSpace::LPS;  ///< space the mesh files are written in (tagged)
 };
 
-/// Throws ParameterError naming the command-line option (--spacing, --oblique, --pose, --noise, --bias, --vertices) of
-/// the first PhantomOptions field out of range.
+/// Throws ParameterError naming the command-line option (--spacing, --oblique, --pose, --noise, --bias, --fov-z,
+/// --vertices) of the first PhantomOptions field out of range.
 void checkPhantomOptions(const PhantomOptions& opts);
 
 /// Tissue classes of the phantom image (values of Phantom::tissues).
