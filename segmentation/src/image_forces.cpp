@@ -182,7 +182,8 @@ struct VertexTarget {
 
 /// Working buffers of the per-vertex search (one set per thread once the loop is parallel).
 struct SearchScratch {
-  std::vector<double> line, value, profile;
+  std::vector<double> line, value, profile, prefix, prefix2;
+  std::vector<int> outside;
 };
 
 /// Picks the sample maximising value − penalty·|s|·max(value) among positive values (s = (i − half)·step), then
@@ -351,16 +352,27 @@ VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, 
   if (leavesImage(sampler, std::min(half, kLeaveCheckSteps) * r.stepMm)) return {};
   for (int j = 0; j < lineLen; ++j) buf.line[j] = sampler.at((j - half - profileHalf) * r.stepMm);
   buf.value.assign(static_cast<size_t>(n), kNaN);
+  // Running sums of the samples, their squares and the samples outside the image (set to 0), so that each window's
+  // mean and spread cost two subtractions; only the dot product with the profile is per window.
+  buf.prefix.resize(static_cast<size_t>(lineLen + 1));
+  buf.prefix2.resize(static_cast<size_t>(lineLen + 1));
+  buf.outside.resize(static_cast<size_t>(lineLen + 1));
+  buf.prefix[0] = buf.prefix2[0] = 0;
+  buf.outside[0] = 0;
+  for (int j = 0; j < lineLen; ++j) {
+    const double x = buf.line[j];
+    const bool in = std::isfinite(x);
+    if (!in) buf.line[j] = 0;
+    buf.prefix[j + 1] = buf.prefix[j] + (in ? x : 0);
+    buf.prefix2[j + 1] = buf.prefix2[j] + (in ? x * x : 0);
+    buf.outside[j + 1] = buf.outside[j] + (in ? 0 : 1);
+  }
+  const Eigen::Map<const Eigen::VectorXd> p(profile, len);
   bool any = false;
   for (int o = 0; o < n; ++o) {
-    const double* w = buf.line.data() + o;
-    double sum = 0, sum2 = 0, dot = 0;
-    for (int i = 0; i < len; ++i) {
-      sum += w[i];
-      sum2 += w[i] * w[i];
-      dot += w[i] * profile[i];
-    }
-    if (!std::isfinite(sum)) continue;  // part of the window is outside the image
+    if (buf.outside[o + len] != buf.outside[o]) continue;  // part of the window is outside the image
+    const double sum = buf.prefix[o + len] - buf.prefix[o], sum2 = buf.prefix2[o + len] - buf.prefix2[o];
+    const double dot = Eigen::Map<const Eigen::VectorXd>(buf.line.data() + o, len).dot(p);
     // The profile has zero mean, so Σ p·(w − mean w) = Σ p·w.
     const double centred = sum2 - sum * sum / len;
     const double norm = centred > 0 ? std::sqrt(centred) : 0;
