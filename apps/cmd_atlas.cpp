@@ -30,7 +30,8 @@ SlicerModule atlasModule() {
       {P("string-enumeration", "--collisions", "Collision pairs").byDefault("auto").choices({"auto", "all", "none"}),
        P("string-enumeration", "--modality", "Modality").byDefault("auto").choices({"auto", "ct", "mr"}),
        P("double", "--margin", "Margin kept around the structures (mm)").byDefault("30").range(0, 500, 1)}};
-  for (const SlicerParameter& p : templateParameters("Vertices per template")) build.parameters.push_back(p);
+  for (const SlicerParameter& p : templateParameters("Vertices per template", AtlasOptions{}.templates.extendCutMm))
+    build.parameters.push_back(p);
   build.parameters.push_back(progressTagsParameter());
   m.groups.push_back(build);
   return m;
@@ -56,7 +57,7 @@ int cmdAtlas(const std::vector<std::string>& argv) {
   app.add_option("--modality", modality, "ct, mr or auto (default: guessed from the intensities)")
       ->check(CLI::IsMember({"ct", "mr", "auto"}));
   addNumber(app, "--margin", opts.marginMm, "margin around the objects kept of the image, mm (default 30)");
-  addTemplateOptions(app, opts.templates);
+  addTemplateOptions(app, opts.templates, true);
   app.add_option("--out", out, "the atlas folder to write, created with its parents (appears whole or not at all)")
       ->required();
   addProgressTagsOption(app);
@@ -76,10 +77,18 @@ int cmdAtlas(const std::vector<std::string>& argv) {
   std::cout << "atlas of " << opts.objects.size() << " object(s) -> " << out << " (modality "
             << atlas["modality"].get<std::string>() << ", reference " << atlas["reference"]["dims"][0] << "x"
             << atlas["reference"]["dims"][1] << "x" << atlas["reference"]["dims"][2] << " voxels)\n";
-  for (const Json& o : atlas["objects"])
+  for (const Json& o : atlas["objects"]) {
     std::cout << "  " << o["name"].get<std::string>() << " (label " << o["label"] << ", "
               << o["kind"].get<std::string>() << "): template " << o["template_vertices"] << " vertices, "
-              << o["template_volume_ml"].get<double>() << " mL\n";
+              << o["template_volume_ml"].get<double>() << " mL";
+    if (!o["cut_by_field_of_view"].empty()) {
+      std::cout << ", cut by the field of view (";
+      for (size_t f = 0; f < o["cut_by_field_of_view"].size(); ++f)
+        std::cout << (f ? ", " : "") << o["cut_by_field_of_view"][f].get<std::string>();
+      std::cout << ") and continued " << o["extended_mm"].get<double>() << " mm beyond it";
+    }
+    std::cout << "\n";
+  }
   return 0;
 }
 

@@ -4,6 +4,7 @@
 #include <iostream>
 #include <optional>
 #include <set>
+#include <sstream>
 
 #include "commands.h"
 #include "msk/imaging/mesh_io.h"
@@ -30,16 +31,29 @@ void requireLabel(const LabelMap& labels, long label, const std::string& labelsP
                                 " not found (labels present: " + (list.empty() ? "none" : list) + ")");
 }
 
-void addTemplateOptions(CLI::App& app, TemplateOptions& opts) {
+void addTemplateOptions(CLI::App& app, TemplateOptions& opts, bool bonesOnly) {
   app.add_option("--vertices", opts.vertices, "vertices of the template, 4..10000000 (default 3000)");
   addNumber(app, "--smooth", opts.smoothingSigmaMm,
             "Gaussian blur of the label, mm (default 0: half the largest voxel spacing, which removes the "
             "staircase of thick slices)");
+  std::ostringstream extendDefault;
+  extendDefault << opts.extendCutMm;
+  addNumber(app, "--extend-cut", opts.extendCutMm,
+            std::string(bonesOnly ? "a bone" : "a label") +
+                " cut by the edge of the scan is continued this far beyond it, mm, its last section repeated straight "
+                "out, so that the template reaches into a scan that shows more of the structure (0: a flat cap at "
+                "the edge; default " +
+                extendDefault.str() + (bonesOnly ? "; muscles and generic objects are capped" : "") + ")");
 }
 
-std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel) {
+std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel, double extendCutMm) {
+  std::ostringstream extendDefault;
+  extendDefault << extendCutMm;
   return {SlicerParameter("integer", "--vertices", verticesLabel).byDefault("3000").range(4, 100000, 100),
-          SlicerParameter("double", "--smooth", "Label blur (mm, 0: automatic)").byDefault("0").range(0, 20, 0.1)};
+          SlicerParameter("double", "--smooth", "Label blur (mm, 0: automatic)").byDefault("0").range(0, 20, 0.1),
+          SlicerParameter("double", "--extend-cut", "Continue structures cut by the scan's edge (mm)")
+              .byDefault(extendDefault.str())
+              .range(0, 500, 5)};
 }
 
 namespace {
@@ -55,7 +69,8 @@ SlicerModule templateModule() {
                       {P("image", "--labels", "Label map").type("label").extensions(".nii.gz"),
                        P("integer", "--label", "Label").byDefault("1").range(1, 2147483647, 1),
                        P("geometry", "--out", "Template surface").output().type("model").extensions(".vtk")}});
-  m.groups.push_back({"Surface", "Its resolution and smoothness.", false, templateParameters("Vertices")});
+  m.groups.push_back({"Surface", "Its resolution and smoothness.", false,
+                      templateParameters("Vertices", TemplateOptions{}.extendCutMm)});
   return m;
 }
 }  // namespace

@@ -51,11 +51,13 @@ struct SegmentOutputs {
 /// `opts` and `outputs`; their ranges are checked by checkSegmentOptions() after parsing.
 void addSegmentOptions(CLI::App& app, SegmentOptions& opts, SegmentOutputs& outputs);
 
-/// Binds the template options (--vertices, --smooth) of `template` and `scene` into `opts`.
-void addTemplateOptions(CLI::App& app, TemplateOptions& opts);
+/// Binds the template options (--vertices, --smooth, --extend-cut) of `template`, `scene` and `atlas` into `opts`;
+/// `bonesOnly`: the help says --extend-cut continues bones only (as `atlas` does).
+void addTemplateOptions(CLI::App& app, TemplateOptions& opts, bool bonesOnly = false);
 
-/// The 3D Slicer module parameters of those options (--vertices labelled `verticesLabel`, --smooth).
-std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel);
+/// The 3D Slicer module parameters of those options (--vertices labelled `verticesLabel`, --smooth, --extend-cut with
+/// the default `extendCutMm`).
+std::vector<SlicerParameter> templateParameters(const std::string& verticesLabel, double extendCutMm);
 /// Throws IoError naming `labelsPath` (and the labels it holds) if `labels` has no voxel of `label`.
 void requireLabel(const LabelMap& labels, long label, const std::string& labelsPath);
 

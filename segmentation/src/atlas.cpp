@@ -121,7 +121,10 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     obj.name = spec.name;
     obj.label = spec.label;
     obj.kind = spec.kind;
-    obj.templ = templateFromLabels(labels, spec.label, opts.templates, &tr);
+    // Only bones are continued beyond the scan's edge (AtlasOptions::templates).
+    TemplateOptions to = opts.templates;
+    if (spec.kind != ObjectKind::Bone) to.extendCutMm = 0;
+    obj.templ = templateFromLabels(labels, spec.label, to, &tr);
     obj.templatePath = fileInFolder(dir, "template_" + spec.name + ".vtk");
     obj.model = defaultModel(spec.kind);
     const Json colour = objectColour(spec.kind, i);
@@ -143,6 +146,10 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     o["template_vertices"] = obj.templ.vertexCount();
     o["template_volume_ml"] = enclosedVolume(obj.templ) / 1000.0;
     o["label_voxels"] = tr.voxels;
+    Json cut = Json::array();
+    for (const std::string& face : tr.extendedFaces) cut.push_back(face);
+    o["cut_by_field_of_view"] = cut;  // faces the label was cut by, continued beyond by extended_mm
+    o["extended_mm"] = tr.extendedMm;
     objects.push_back(o);
     scene.objects.push_back(std::move(obj));
   }
@@ -175,6 +182,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   ref["dims"] = Json::array({reference.grid.dims[0], reference.grid.dims[1], reference.grid.dims[2]});
   ref["spacing_mm"] = Json::array({reference.grid.spacing[0], reference.grid.spacing[1], reference.grid.spacing[2]});
   ref["margin_mm"] = opts.marginMm;
+  ref["extend_cut_mm"] = opts.templates.extendCutMm;
   ref["box_ras_mm"] = Json::array({Json::array({lo.x(), lo.y(), lo.z()}), Json::array({hi.x(), hi.y(), hi.z()})});
   atlas["reference"] = ref;
   // Stored as read; both the registration and the profiles normalise every image the same way when they use it.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <unordered_map>
 
 #include "msk/core/error.h"
 #include "msk/imaging/filters.h"
@@ -388,6 +389,72 @@ VertexTarget profileSearch(const LineSampler& sampler, const ResolvedSearch& r, 
   return t;
 }
 
+/// Whether a vertex at `p` with unit normal `n` lies beyond the voxel centres of `g` on the side of a structure that
+/// goes on past the scan: outside along some axis, with its normal at least 60° from that axis (a side of a
+/// continued shaft, not the cap a cut structure gets on the scan's voxel boundary, nor its rounded rim).
+bool beyondImageSideways(const Grid& g, const Eigen::Vector3d& p, const Eigen::Vector3d& n) {
+  const Eigen::Vector3d v = g.toVoxel(p);
+  bool beyond = false;
+  for (int a = 0; a < 3; ++a)
+    if (v[a] < 0 || v[a] > g.dims[a] - 1) {
+      if (std::abs(n.dot(g.direction.col(a))) > 0.5) return false;
+      beyond = true;
+    }
+  return beyond;
+}
+
+/// Cube size (mm) of the donor buckets of borrowProfiles().
+constexpr double kBorrowCellMm = 8;
+
+/// Gives each vertex of `borrowers` (no profile of its own) the profile of the nearest vertex with one, within
+/// kProfileBorrowMm and with a normal within kProfileBorrowDegrees (learnProfiles()). Donors are bucketed in cubes of
+/// kBorrowCellMm; a borrower scans shells of cubes outward until no nearer donor can remain.
+void borrowProfiles(Eigen::MatrixXd& profiles, const Points& positions, const Points& normals,
+                    const std::vector<Eigen::Index>& borrowers) {
+  if (borrowers.empty()) return;
+  const double minCos = std::cos(kProfileBorrowDegrees * M_PI / 180.0);
+  std::unordered_map<uint64_t, std::vector<Eigen::Index>> cells;
+  auto cellOf = [](const Eigen::Vector3d& p) -> Eigen::Vector3i {
+    return Eigen::Vector3i((p / kBorrowCellMm).array().floor().cast<int>());
+  };
+  auto key = [](const Eigen::Vector3i& c) {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(c[0]) & 0x1fffff) << 42) |
+           (static_cast<uint64_t>(static_cast<uint32_t>(c[1]) & 0x1fffff) << 21) |
+           static_cast<uint64_t>(static_cast<uint32_t>(c[2]) & 0x1fffff);
+  };
+  for (Eigen::Index v = 0; v < profiles.rows(); ++v)
+    if (profiles.row(v).squaredNorm() > 0 && positions.row(v).allFinite())
+      cells[key(cellOf(positions.row(v).transpose()))].push_back(v);
+  if (cells.empty()) return;
+  const int maxShell = static_cast<int>(std::ceil(kProfileBorrowMm / kBorrowCellMm)) + 1;
+  Eigen::Vector3d n, m;
+  for (Eigen::Index v : borrowers) {
+    if (!unitNormal(normals, v, n)) continue;
+    const Eigen::Vector3d p = positions.row(v).transpose();
+    const Eigen::Vector3i c = cellOf(p);
+    double best = kProfileBorrowMm * kProfileBorrowMm;
+    Eigen::Index donor = -1;
+    for (int shell = 0; shell <= maxShell; ++shell) {
+      // Every point of shell `shell` is at least (shell − 1) cells away.
+      if (shell > 1 && std::pow((shell - 1) * kBorrowCellMm, 2) > best) break;
+      for (int dz = -shell; dz <= shell; ++dz)
+        for (int dy = -shell; dy <= shell; ++dy)
+          for (int dx = -shell; dx <= shell; ++dx) {
+            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != shell) continue;
+            const auto it = cells.find(key(c + Eigen::Vector3i(dx, dy, dz)));
+            if (it == cells.end()) continue;
+            for (Eigen::Index u : it->second) {
+              const double d2 = (positions.row(u).transpose() - p).squaredNorm();
+              if (d2 > best || (d2 == best && u > donor)) continue;
+              if (!unitNormal(normals, u, m) || m.dot(n) < minCos) continue;
+              best = d2, donor = u;
+            }
+          }
+    }
+    if (donor >= 0) profiles.row(v) = profiles.row(donor);
+  }
+}
+
 /// Score-weighted smoothing of `offsets` over the neighbour graph, `passes` times; vertices with score 0 keep their
 /// (zero) offset. Each pass: o_v ← Σ_{u ∈ {v} ∪ N(v)} w_u o_u / Σ w_u.
 void regulariseOffsets(Eigen::VectorXd& offsets, const Eigen::VectorXd& scores, const NeighborTable& neighbors,
@@ -501,7 +568,7 @@ double estimateEdgeLevel(const ImageFeatures& features, const Points& positions,
 }
 
 LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
-                              const TargetSearchOptions& opts, const Grid& grid) {
+                              const TargetSearchOptions& opts, const Grid& grid, bool borrow) {
   requireSameRows(positions, normals);
   requireNonNegative("profileHalfLengthMm", opts.profileHalfLengthMm);
   LearnedProfiles lp;
@@ -513,15 +580,20 @@ LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& posit
   LineSampler sampler(features.smoothed);
   Eigen::VectorXd row(len);
   Eigen::Vector3d n;
+  std::vector<Eigen::Index> outside;  // vertices whose line leaves the image
   for (Eigen::Index v = 0; v < positions.rows(); ++v) {
-    if (!unitNormal(normals, v, n)) continue;
+    if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
     sampler.setLine(positions.row(v).transpose(), n);
     for (int i = 0; i < len; ++i) row[i] = sampler.at((i - lp.halfSamples) * lp.stepMm);
-    if (!row.allFinite()) continue;  // partly outside the image: no usable profile
+    if (!row.allFinite()) {  // partly outside the image: no profile; borrowed below beside a continued structure
+      if (beyondImageSideways(features.smoothed.grid, positions.row(v).transpose(), n)) outside.push_back(v);
+      continue;
+    }
     row.array() -= row.mean();
     const double norm = row.norm();
     if (norm > kFlatTol * std::sqrt(len)) lp.profiles.row(v) = row / norm;
   }
+  if (borrow) borrowProfiles(lp.profiles, positions, normals, outside);
   return lp;
 }
 

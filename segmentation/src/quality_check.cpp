@@ -63,7 +63,8 @@ double imageNoiseSigma(const ImageF& image) {
 }
 
 ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& mesh, Polarity polarity,
-                             TargetMode lastForce, double noiseSigma, const QualityThresholds& t) {
+                             TargetMode lastForce, double noiseSigma, const QualityThresholds& t,
+                             const std::function<bool(const Eigen::Vector3d&)>& unseen) {
   if (polarity == Polarity::Auto) throw ParameterError("polarity", "Auto", "must be resolved before measureQuality");
   ObjectQuality q;
   q.contrastJudged = lastForce == TargetMode::Gradient;
@@ -71,7 +72,7 @@ ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& 
   const double sign = polarity == Polarity::DarkInside ? 1.0 : -1.0;
   const Points normals = nv > 0 ? vertexNormals(mesh) : Points();
   std::vector<double> inside, outside;
-  int sampled = 0, edges = 0;
+  int sampled = 0, edges = 0, expectedOutside = 0;
   for (int v = 0; v < nv; ++v) {
     const Eigen::Vector3d p = mesh.vertices.row(v).transpose(), n = normals.row(v).transpose();
     if (!(n.norm() > 0.5)) continue;
@@ -83,7 +84,10 @@ ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& 
       if (!a || !b) break;
       in[k] = *a, out[k] = *b, ++found;
     }
-    if (found < kSideSamples) continue;
+    if (found < kSideSamples) {
+      if (unseen && unseen(p)) ++expectedOutside;
+      continue;
+    }
     ++sampled;
     double step = 0;
     for (int k = 0; k < kSideSamples; ++k) {
@@ -93,7 +97,7 @@ ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& 
     }
     if (step > t.significantStep * std::max(noiseSigma, kFlat)) ++edges;
   }
-  q.inImageShare = nv > 0 ? static_cast<double>(sampled) / nv : 0.0;
+  q.inImageShare = nv > expectedOutside ? static_cast<double>(sampled) / (nv - expectedOutside) : 0.0;
   q.edgeShare = sampled > 0 ? static_cast<double>(edges) / sampled : 0.0;
   if (sampled > 0) {
     const double mIn = median(inside), mOut = median(outside);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -9,6 +10,7 @@
 
 #include "msk/core/error.h"
 #include "msk/core/log.h"
+#include "msk/imaging/filters.h"
 #include "msk/segmentation/quality_check.h"
 #include "msk/segmentation/surface_quality.h"
 #include "parallel_each.h"
@@ -234,12 +236,29 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   const double noise = imageNoiseSigma(finest.smoothed);
   for (size_t i = 0; i < res.objects.size(); ++i) {
     ObjectResult& o = res.objects[i];
-    o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise);
+    const SceneObject& so = scene.objects[i];
+    std::function<bool(const Eigen::Vector3d&)> unseen;
+    if (so.profileImage) {
+      // Where the profiles' source image (an atlas's reference) ends, a continued template is not expected in view.
+      const Eigen::Matrix4d toSource = so.profileSource.value_or(Eigen::Matrix4d::Identity());
+      unseen = [&so, toSource](const Eigen::Vector3d& p) {
+        return !sampleTrilinear(*so.profileImage, toSource.topLeftCorner<3, 3>() * p + toSource.topRightCorner<3, 1>());
+      };
+    }
+    o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise, {}, unseen);
     const ObjectState& st = objs[i];
     if (st.force == TargetMode::Profile && st.profiles.profiles.rows() == st.current.vertexCount()) {
       const LearnedProfiles now =
-          learnProfiles(finest, st.current.positions, simplexVertexNormals(st.current), st.search, image.grid);
-      o.quality.profileMatch = now.profiles.cwiseProduct(st.profiles.profiles).rowwise().sum().mean();
+          learnProfiles(finest, st.current.positions, simplexVertexNormals(st.current), st.search, image.grid, false);
+      // Over the vertices with a profile on both sides (a zero row has none).
+      double sum = 0;
+      int counted = 0;
+      for (Eigen::Index v = 0; v < now.profiles.rows(); ++v)
+        if (now.profiles.row(v).squaredNorm() > 0 && st.profiles.profiles.row(v).squaredNorm() > 0) {
+          sum += now.profiles.row(v).dot(st.profiles.profiles.row(v));
+          ++counted;
+        }
+      o.quality.profileMatch = counted > 0 ? sum / counted : 0.0;
       judgeQuality(o.quality);
     }
     res.status = worseStatus(res.status, o.quality.status);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,53 @@ constexpr int kSmoothIterations = 20;
 constexpr double kSmoothPassBand = 0.1;
 /// Largest isotropic grid the smoothed mask is resampled onto before the isosurface (voxels; 128 MB of floats).
 constexpr double kMaxFineVoxels = 32e6;
+/// A cut label is continued beyond a face only where its section there is at least this share of its largest
+/// section along the face's axis.
+constexpr double kMinCutSectionShare = 0.1;
+
+/// The anatomical name of the world direction `d` (RAS): its largest component.
+const char* anatomicalDirection(const Eigen::Vector3d& d) {
+  static const char* const names[3][2] = {{"left", "right"}, {"posterior", "anterior"}, {"inferior", "superior"}};
+  int a = 0;
+  d.cwiseAbs().maxCoeff(&a);
+  return names[a][d[a] > 0 ? 1 : 0];
+}
+
+/// The area (in voxels) of the section of `field` at index `t` along `axis`.
+double sectionArea(const ImageF& field, int axis, int t) {
+  const int b = (axis + 1) % 3, c = (axis + 2) % 3;
+  double area = 0;
+  Eigen::Vector3i ijk;
+  ijk[axis] = t;
+  for (int y = 0; y < field.grid.dims[c]; ++y)
+    for (int x = 0; x < field.grid.dims[b]; ++x) {
+      ijk[b] = x, ijk[c] = y;
+      area += field.at(ijk[0], ijk[1], ijk[2]);
+    }
+  return area;
+}
+
+/// `field` (1 inside) continued by `slices` copies of its section on the face on `side` (−1: index 0, +1: the last
+/// index) of `axis`. The section is repeated straight along the axis, not drifted with the structure's own axis: the
+/// structures of one scan, continued alike, keep their places relative to one another and do not run into each other.
+ImageF extendBeyondFace(const ImageF& field, int axis, int side, int slices) {
+  const Grid& g = field.grid;
+  Grid grown = g;
+  grown.dims[axis] += slices;
+  Eigen::Vector3d firstVoxel = Eigen::Vector3d::Zero();
+  if (side < 0) firstVoxel[axis] = -slices;
+  grown.origin = g.toWorld(firstVoxel);
+  ImageF out(grown, 0.f);
+  const int shift = side < 0 ? slices : 0;
+  for (int k = 0; k < grown.dims[2]; ++k)
+    for (int j = 0; j < grown.dims[1]; ++j)
+      for (int i = 0; i < grown.dims[0]; ++i) {
+        Eigen::Vector3i from(i, j, k);
+        from[axis] = std::clamp(from[axis] - shift, 0, g.dims[axis] - 1);  // beyond the face: the face's section
+        out.at(i, j, k) = field.at(from[0], from[1], from[2]);
+      }
+  return out;
+}
 
 /// Keeps only the largest 26-connected component of `mask` (1 = inside); returns the number of components dropped.
 size_t keepLargestComponent(std::vector<uint8_t>& mask, const Grid& g) {
@@ -63,6 +111,8 @@ void checkTemplateOptions(const TemplateOptions& opts) {
   if (!(opts.smoothingSigmaMm >= 0) || !std::isfinite(opts.smoothingSigmaMm))
     throw ParameterError("--smooth", std::to_string(opts.smoothingSigmaMm),
                          "must be >= 0 mm (0: half the largest voxel spacing)");
+  if (!(opts.extendCutMm >= 0 && opts.extendCutMm <= 500))
+    throw ParameterError("--extend-cut", std::to_string(opts.extendCutMm), "must be in [0, 500] mm");
 }
 
 TriangleMesh templateFromLabels(const LabelMap& labels, int label, const TemplateOptions& opts,
@@ -110,18 +160,41 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
     field.data[n] = mask[n] ? 1.f : 0.f;
     voxels += mask[n];
   }
-  const double maskVolume = static_cast<double>(voxels) * g.spacing.prod();
+  double maskVolume = static_cast<double>(voxels) * g.spacing.prod();
+
+  // Faces of the grid that cut the label (its crop reaches them and its section there is not a graze): continued.
+  std::vector<std::string> extendedFaces;
+  double extendedMm = 0;
+  if (opts.extendCutMm > 0) {
+    for (int a = 0; a < 3; ++a)
+      for (int side : {-1, 1}) {
+        const bool atFace = side < 0 ? start[a] == 0 : start[a] + crop.dims[a] == g.dims[a];
+        if (!atFace) continue;
+        const int faceIndex = side < 0 ? 0 : field.grid.dims[a] - 1;
+        double largest = 0;
+        for (int t = 0; t < field.grid.dims[a]; ++t) largest = std::max(largest, sectionArea(field, a, t));
+        const double atEdge = sectionArea(field, a, faceIndex);
+        if (!(atEdge > 0 && atEdge >= kMinCutSectionShare * largest)) continue;
+        const int slices = std::max(1, static_cast<int>(std::ceil(opts.extendCutMm / g.spacing[a] - 1e-9)));
+        const double before = std::accumulate(field.data.begin(), field.data.end(), 0.0);
+        field = extendBeyondFace(field, a, side, slices);
+        maskVolume += (std::accumulate(field.data.begin(), field.data.end(), 0.0) - before) * g.spacing.prod();
+        extendedFaces.emplace_back(anatomicalDirection(side * g.direction.col(a)));
+        extendedMm = std::max(extendedMm, slices * g.spacing[a]);
+      }
+  }
 
   // Smoothed mask, then one voxel of zeros around it: a structure cut by the grid border (replicated by the
   // smoothing) gets its 0.5 level, a flat cap, half a voxel beyond the last voxel centre, on the voxel boundary.
   const ImageF smoothed = gaussianSmooth(field, sigma);
-  Grid padded = crop;
+  const Grid& fieldGrid = field.grid;
+  Grid padded = fieldGrid;
   padded.dims += Eigen::Vector3i::Constant(2);
-  padded.origin = crop.toWorld(Eigen::Vector3d::Constant(-1));
+  padded.origin = fieldGrid.toWorld(Eigen::Vector3d::Constant(-1));
   ImageF smoothPadded(padded, 0.f);
-  for (int k = 0; k < crop.dims[2]; ++k)
-    for (int j = 0; j < crop.dims[1]; ++j)
-      for (int i = 0; i < crop.dims[0]; ++i) smoothPadded.at(i + 1, j + 1, k + 1) = smoothed.at(i, j, k);
+  for (int k = 0; k < fieldGrid.dims[2]; ++k)
+    for (int j = 0; j < fieldGrid.dims[1]; ++j)
+      for (int i = 0; i < fieldGrid.dims[0]; ++i) smoothPadded.at(i + 1, j + 1, k + 1) = smoothed.at(i, j, k);
 
   // Isosurface on an isotropic grid (trilinear resampling of the smooth field): well-shaped triangles on thick
   // slices, and enough of them for the decimation to reach the target count.
@@ -159,6 +232,8 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
     report->componentsDropped = dropped;
     report->maskVolumeMm3 = maskVolume;
     report->offsetMm = offset;
+    report->extendedFaces = extendedFaces;
+    report->extendedMm = extendedMm;
   }
   return mesh;
 }

@@ -12,6 +12,7 @@
 #include "msk/core/error.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/imaging/filters.h"
+#include "msk/imaging/registration.h"
 #include "msk/test/shapes.h"
 #include "msk/test/volumes.h"
 
@@ -168,6 +169,92 @@ TEST(ImageForcesProfile, LearnedOnTheSurfaceFindsItAgain) {
   RecordProperty("max_error", std::to_string(e.maxAbs));
   EXPECT_LT(e.maxAbs, 0.3);
   EXPECT_LT(std::abs(e.mean), 0.1);
+}
+
+// A structure the source of its profiles cuts: a dark tube (radius 15 mm along z), its profiles learned on an image
+// cropped above kCenter.z + 8 mm. A vertex on the tube's side beyond the crop borrows the profile of the nearest
+// vertex that has one with a normal within kProfileBorrowDegrees, and finds the tube's wall in the whole image; a
+// vertex inside the crop whose line leaves it keeps none, as does the tube's cap, facing along it. Without borrowing,
+// every vertex whose line leaves the crop keeps none.
+TEST(ImageForcesProfile, VerticesBeyondTheSourceBorrowTheNearestProfile) {
+  constexpr double kTube = 15;
+  const ImageF whole = makeImage({1.2, 1.2, 3.0}, {10, -5, 20}, 40, [](const Eigen::Vector3d& p) {
+    return (p - kCenter).head<2>().norm() < kTube ? 200.0 : 800.0;
+  });
+  const Eigen::Vector3d lo = kCenter - Eigen::Vector3d::Constant(50), hi = kCenter + Eigen::Vector3d(50, 50, 8);
+  const ImageF cut = cropToWorldBox(whole, lo, hi);
+  const ImageFeatures fCut = computeImageFeatures(cut, 1.0), fWhole = computeImageFeatures(whole, 1.0);
+  // Rings of the tube every 2 mm from −24 to +24 mm, and its top cap; radial normals (the cap's point up).
+  std::vector<Eigen::Vector3d> at, normal;
+  for (int k = -12; k <= 12; ++k)
+    for (int a = 0; a < 36; ++a) {
+      const Eigen::Vector3d n(std::cos(a * 10 * kDegree), std::sin(a * 10 * kDegree), 0);
+      at.push_back(kCenter + kTube * n + Eigen::Vector3d(0, 0, 2.0 * k));
+      normal.push_back(n);
+    }
+  const int capFrom = static_cast<int>(at.size());
+  for (int a = 0; a < 36; ++a) {
+    const Eigen::Vector3d r(std::cos(a * 10 * kDegree), std::sin(a * 10 * kDegree), 0);
+    at.push_back(kCenter + 7.0 * r + Eigen::Vector3d(0, 0, 24));
+    normal.push_back(Eigen::Vector3d::UnitZ());
+  }
+  Points positions(at.size(), 3), normals(at.size(), 3), start(at.size(), 3);
+  for (size_t v = 0; v < at.size(); ++v) {
+    positions.row(v) = at[v].transpose();
+    normals.row(v) = normal[v].transpose();
+    start.row(v) = (at[v] + 2.0 * normal[v]).transpose();  // 2 mm out
+  }
+  TargetSearchOptions opts;
+  opts.mode = TargetMode::Profile;
+  opts.regularisationRings = 0;
+  const LearnedProfiles own = learnProfiles(fCut, positions, normals, opts, whole.grid, false);
+  const LearnedProfiles lp = learnProfiles(fCut, positions, normals, opts, whole.grid);
+  const TargetSearchResult res =
+      searchTargets(fWhole, start, normals, NeighborTable(), opts, Polarity::DarkInside, whole.grid, &lp);
+  const double minCos = std::cos(kProfileBorrowDegrees * kDegree);
+  int borrowed = 0, none = 0, near = 0;
+  for (int v = 0; v < positions.rows(); ++v) {
+    if (own.profiles.row(v).squaredNorm() > 0) {
+      EXPECT_EQ(lp.profiles.row(v), own.profiles.row(v)) << "vertex " << v;
+      continue;
+    }
+    const Eigen::Vector3d n = normals.row(v).transpose();
+    // Only a vertex beyond the crop's voxel centres with its normal at least 60° from the axis it is beyond along.
+    const Eigen::Vector3d voxel = cut.grid.toVoxel(positions.row(v).transpose());
+    bool beyond = false, facingOut = false;
+    for (int a = 0; a < 3; ++a)
+      if (voxel[a] < 0 || voxel[a] > cut.grid.dims[a] - 1) {
+        beyond = true;
+        facingOut = facingOut || std::abs(n.dot(cut.grid.direction.col(a))) > 0.5;
+      }
+    beyond = beyond && !facingOut;
+    if (!beyond || v >= capFrom) {
+      ++(v >= capFrom ? none : near);
+      EXPECT_EQ(lp.profiles.row(v).squaredNorm(), 0.0) << "vertex " << v;
+      continue;
+    }
+    // Its profile is that of the nearest vertex with one and a normal close enough (or of one as near).
+    double best = kProfileBorrowMm * kProfileBorrowMm;
+    for (int u = 0; u < positions.rows(); ++u) {
+      const double d2 = (positions.row(u) - positions.row(v)).squaredNorm();
+      if (own.profiles.row(u).squaredNorm() > 0 && normals.row(u).dot(n) >= minCos && d2 < best) best = d2;
+    }
+    bool fromNearest = false;
+    for (int u = 0; u < positions.rows(); ++u)
+      fromNearest = fromNearest || (own.profiles.row(u).squaredNorm() > 0 && normals.row(u).dot(n) >= minCos &&
+                                    (positions.row(u) - positions.row(v)).squaredNorm() <= best + 1e-9 &&
+                                    lp.profiles.row(v) == own.profiles.row(u));
+    EXPECT_TRUE(fromNearest) << "vertex " << v;
+    ++borrowed;
+    // It finds the wall, 2 mm in from where the search started.
+    EXPECT_GT(res.scores[v], 0.5) << "vertex " << v;
+    EXPECT_NEAR(res.offsets[v], -2.0, 0.5) << "vertex " << v;
+  }
+  RecordProperty("borrowed_cap_near",
+                 std::to_string(borrowed) + "/" + std::to_string(none) + "/" + std::to_string(near));
+  EXPECT_GT(borrowed, 36);  // the crop of the oblique grid reaches above +8 mm in places
+  EXPECT_EQ(none, 36);
+  EXPECT_GT(near, 0);
 }
 
 TEST(ImageForcesProfile, RequiresMatchingProfiles) {

@@ -102,7 +102,25 @@ TEST(QualityCheck, OutsideTheImageFailsAndContrastIsJudgedForTheGradientForce) {
   ASSERT_EQ(out.reasons.size(), 1u);
   EXPECT_NE(out.reasons[0].find("inside the image"), std::string::npos) << out.reasons[0];
 
+  // A surface running out of the image: its vertices outside count against it, unless the source of its profiles did
+  // not show them either (a structure an atlas's scan cut, continued beyond it).
+  msk::TriangleMesh through = msk::makeIcosphere(10.0, 3);
+  through.vertices.col(0).array() *= 3.0;  // an ellipsoid 60 mm long across the 32 mm image
+  const ObjectQuality counted = measured(ball, through);
+  EXPECT_LT(counted.inImageShare, 0.7);
   const msk::ImageFeatures f = msk::computeImageFeatures(ball, 0.5);
+  const ObjectQuality excused = msk::measureQuality(f, through, msk::Polarity::DarkInside, msk::TargetMode::Gradient,
+                                                    msk::imageNoiseSigma(f.smoothed), {},
+                                                    [](const Eigen::Vector3d& p) { return std::abs(p.x()) > 12; });
+  EXPECT_GT(excused.inImageShare, counted.inImageShare + 0.2);
+  EXPECT_LE(excused.inImageShare, 1.0);
+  // A vertex outside the image that the source did show still counts.
+  const ObjectQuality seen =
+      msk::measureQuality(f, through, msk::Polarity::DarkInside, msk::TargetMode::Gradient,
+                          msk::imageNoiseSigma(f.smoothed), {}, [](const Eigen::Vector3d& p) { return p.x() > 12; });
+  EXPECT_GT(seen.inImageShare, counted.inImageShare);
+  EXPECT_LT(seen.inImageShare, excused.inImageShare);
+
   const ObjectQuality wrong = msk::measureQuality(f, msk::makeIcosphere(10.0, 3), msk::Polarity::BrightInside,
                                                   msk::TargetMode::Gradient, msk::imageNoiseSigma(f.smoothed));
   EXPECT_EQ(wrong.status, QualityStatus::Failed);

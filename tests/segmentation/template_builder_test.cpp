@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "msk/core/error.h"
 #include "msk/imaging/nifti_io.h"
@@ -138,6 +139,57 @@ TEST(TemplateBuilder, StructureCutByTheGridGetsFlatCapsOnTheVoxelBoundary) {
   EXPECT_NEAR(m.vertices.col(2).minCoeff(), -1.5, 0.3);
   EXPECT_NEAR(m.vertices.col(2).maxCoeff(), 34.5, 0.3);
   EXPECT_NEAR(msk::enclosedVolume(m), voxelVolume(lab, 1), 0.01 * voxelVolume(lab, 1));
+}
+
+// The same cut cylinder continued beyond the faces that cut it: its section repeated straight out by the slices that
+// hold extendCutMm, the volume preserved with them; a ball that grazes a face (a section of a few voxels) is not.
+TEST(TemplateBuilder, StructureCutByTheGridIsContinuedBeyondIt) {
+  msk::Grid g;
+  g.spacing = {1.0, 1.0, 3.0};
+  g.dims = {30, 30, 12};
+  g.origin = {-14.5, -14.5, 0};
+  msk::LabelMap lab(g, 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (g.toWorld(Eigen::Vector3d(i, j, k)).head<2>().norm() <= 8) lab.at(i, j, k) = 1;
+  msk::TemplateOptions o;
+  o.extendCutMm = 20;  // 7 slices of 3 mm: 21 mm
+  msk::TemplateReport rep;
+  const msk::TriangleMesh m = msk::templateFromLabels(lab, 1, o, &rep);
+  ASSERT_EQ(msk::closedMeshProblem(m), "");
+  EXPECT_EQ(rep.extendedFaces, (std::vector<std::string>{"inferior", "superior"}));
+  EXPECT_DOUBLE_EQ(rep.extendedMm, 21.0);
+  EXPECT_NEAR(m.vertices.col(2).minCoeff(), -1.5 - 21, 0.3);
+  EXPECT_NEAR(m.vertices.col(2).maxCoeff(), 34.5 + 21, 0.3);
+  // Straight out: the continued parts have the cut section's radius and centre.
+  for (int v = 0; v < m.vertexCount(); ++v) {
+    const Eigen::Vector3d p = m.vertices.row(v).transpose();
+    if (p.z() < -10 || p.z() > 45) EXPECT_LE(p.head<2>().norm(), 8.6) << p.transpose();
+  }
+  const double continued = voxelVolume(lab, 1) * (12.0 + 14.0) / 12.0;
+  EXPECT_NEAR(msk::enclosedVolume(m), continued, 0.01 * continued);
+
+  // A ball whose edge just reaches the face z = 0: a graze, capped as before.
+  msk::LabelMap ball(g, 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if ((g.toWorld(Eigen::Vector3d(i, j, k)) - Eigen::Vector3d(0, 0, 11.9)).norm() <= 12) ball.at(i, j, k) = 2;
+  msk::TemplateReport ballRep;
+  const msk::TriangleMesh b = msk::templateFromLabels(ball, 2, o, &ballRep);
+  EXPECT_TRUE(ballRep.extendedFaces.empty());
+  EXPECT_GT(b.vertices.col(2).minCoeff(), -2.0);
+
+  // Along another axis on an oblique grid, the face is named by the direction it faces.
+  msk::LabelMap side = lab;
+  side.grid.direction = msk::Grid::rotationXYZ({0, 90, 0});  // k points to +x: the grid's last face looks right
+  msk::TemplateReport sideRep;
+  msk::templateFromLabels(side, 1, o, &sideRep);
+  EXPECT_EQ(sideRep.extendedFaces, (std::vector<std::string>{"left", "right"}));
+
+  o.extendCutMm = -1;
+  EXPECT_THROW(msk::templateFromLabels(lab, 1, o), msk::ParameterError);
 }
 
 TEST(TemplateBuilder, MirrorReflectsAndKeepsNormalsOutward) {

@@ -67,14 +67,19 @@ Eigen::Matrix4d knownMove(double degrees, double mm, const Eigen::Vector3d& cent
 AtlasCase phantomAtlasCase(uint32_t atlasSeed, uint32_t subjectSeed, const PhantomPose& pose) {
   PhantomOptions a;
   a.seed = atlasSeed;
-  a.meshes = false;
-  const Phantom atlas = makePhantom(a);
   PhantomOptions s = a;
   s.seed = subjectSeed;
   s.pose = pose;
+  return phantomAtlasCase(a, s);
+}
+
+AtlasCase phantomAtlasCase(const PhantomOptions& atlasOptions, const PhantomOptions& subjectOptions) {
+  PhantomOptions a = atlasOptions, s = subjectOptions;
+  a.meshes = s.meshes = false;
+  const Phantom atlas = makePhantom(a);
   const Phantom subject = makePhantom(s);
   AtlasCase c;
-  c.name = "phantom seed " + std::to_string(atlasSeed) + " -> " + std::to_string(subjectSeed);
+  c.name = "phantom seed " + std::to_string(a.seed) + " -> " + std::to_string(s.seed);
   c.atlasImage = atlas.image;
   c.atlasLabels = atlas.labels;
   c.subject = subject.image;

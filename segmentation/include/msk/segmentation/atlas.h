@@ -38,12 +38,25 @@ enum class AtlasCollisions {
 };
 
 /// Parameters of buildAtlas().
+/// How far an atlas continues a bone cut by its reference's field of view, by default (mm).
+constexpr double kAtlasExtendCutMm = 30;
+/// The template options of an atlas by default: TemplateOptions{} with extendCutMm = kAtlasExtendCutMm.
+inline TemplateOptions atlasTemplateOptions() {
+  TemplateOptions t;
+  t.extendCutMm = kAtlasExtendCutMm;
+  return t;
+}
+
 struct AtlasOptions {
   std::vector<AtlasObjectSpec> objects;
   AtlasCollisions collisions = AtlasCollisions::Auto;
-  TemplateOptions templates;  ///< as `mskseg template` builds them
-  double marginMm = 30;       ///< the reference image is cropped to the templates' box grown by this, mm, ≥ 0
-  std::string modality;       ///< "ct" | "mr"; empty: guessModality() of the image
+  /// As `mskseg template` builds them, but bones cut by the reference's field of view are continued beyond it by
+  /// extendCutMm (kAtlasExtendCutMm by default): a new subject's scan may show more of them, and a long bone's shaft
+  /// goes on much as its last section. Muscles and generic objects are capped at the edge: they taper and end, and
+  /// continuing them gained nothing on average (docs/measurements.md).
+  TemplateOptions templates = atlasTemplateOptions();
+  double marginMm = 30;  ///< the reference image is cropped to the templates' box grown by this, mm, ≥ 0
+  std::string modality;  ///< "ct" | "mr"; empty: guessModality() of the image
 };
 
 /// Builds an atlas from a subject's image and labels into the existing, empty folder `dir` (the caller makes the

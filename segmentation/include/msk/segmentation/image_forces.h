@@ -66,6 +66,10 @@ struct TargetSearchOptions {
 };
 
 /// Per-vertex intensity profiles learned on the template's initial position (Profile mode).
+/// How far (mm) and how differently oriented (degrees) a vertex beside the source image may borrow another's profile
+/// (learnProfiles()).
+constexpr double kProfileBorrowMm = 50, kProfileBorrowDegrees = 30;
+
 struct LearnedProfiles {
   double stepMm = 0;         ///< sample spacing along the normal
   int halfSamples = 0;       ///< samples on each side of the surface
@@ -89,9 +93,15 @@ Polarity estimatePolarity(const ImageFeatures& features, const Points& positions
 /// lies wholly below the bone's level. NaN if nothing could be sampled.
 double estimateEdgeLevel(const ImageFeatures& features, const Points& positions, const Points& normals);
 
-/// Learns per-vertex profiles at the current positions (normals outward).
+/// Learns per-vertex profiles at the current positions (normals outward). A vertex whose profile line leaves the image
+/// has none (a zero row). If the vertex itself lies beyond the image's voxel centres with its normal at least 60° from
+/// the axis it is beyond along (the side of a template continued beyond the scan that cut its structure; not the cap
+/// or the rounded rim a cut structure gets at the scan's edge), it borrows the profile of the nearest vertex that has
+/// one, within kProfileBorrowMm and with a normal within kProfileBorrowDegrees of its own: the structure is taken to
+/// continue as it looks at the edge of the scan. Flat profiles are not replaced. `borrow` false: no vertex borrows
+/// (what the image itself shows, e.g. for comparing a result with what it learned).
 LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& positions, const Points& normals,
-                              const TargetSearchOptions& opts, const Grid& grid);
+                              const TargetSearchOptions& opts, const Grid& grid, bool borrow = true);
 
 /// Searches a target for every vertex along its normal. `neighbors` (#V×3, the simplex neighbour table) is used
 /// for the regularisation; `profiles` is required in Profile mode. `polarity` must not be Auto (estimate it once).

@@ -4,6 +4,7 @@
 /// image without structure, or from a misplaced template still converges and reports small residuals; these figures
 /// tell it apart. The limits live in QualityThresholds (docs/method.md, "Knowing when a segmentation failed"; the
 /// calibration in docs/measurements.md).
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -28,6 +29,8 @@ inline QualityStatus worseStatus(QualityStatus a, QualityStatus b) { return a > 
 /// inside) · s, s = +1 for dark-inside and −1 for bright-inside, so that a boundary of the object's polarity steps up.
 struct ObjectQuality {
   /// Share of the vertices whose samples all lie in the image (0..1); the others are left out of the figures below.
+  /// Vertices outside the image that the source of the object's profiles did not show either (a structure the atlas's
+  /// scan cut, continued beyond it) are not counted at all: the scan was not expected to show them.
   double inImageShare = 0;
   /// Share of the sampled vertices whose step exceeds QualityThresholds::significantStep noise levels
   /// (imageNoiseSigma(); any step on a noise-free image): vertices on an edge of the object's polarity that stands out
@@ -39,8 +42,9 @@ struct ObjectQuality {
   /// Whether the contrast is judged: the object's last pass used the gradient force (which seeks a step of its
   /// polarity). A profile force seeks a learned profile, which may be a boundary of little contrast.
   bool contrastJudged = false;
-  /// Objects on the profile force: the mean over the final surface's vertices of the correlation of its intensity
-  /// profile with the one it learned (1: every boundary looks as where the profiles were learned); NaN otherwise.
+  /// Objects on the profile force: the mean, over the final surface's vertices that have a profile both in the image
+  /// and where they learned it, of the correlation of the two (1: every boundary looks as where the profiles were
+  /// learned); NaN otherwise.
   double profileMatch = std::numeric_limits<double>::quiet_NaN();
   QualityStatus status = QualityStatus::Ok;
   std::vector<std::string> reasons;  ///< one line per figure beyond its limit: the status, figure, value and limit
@@ -62,9 +66,11 @@ double imageNoiseSigma(const ImageF& image);
 
 /// Measures the figures of `mesh` (a final surface, RAS mm, outward-oriented) in `features` (the finest scale of the
 /// run), for an object of `polarity` (not Auto) whose last pass used `lastForce`; `noiseSigma` is
-/// imageNoiseSigma(features.smoothed). Sets the status and reasons with judgeQuality(`t`).
+/// imageNoiseSigma(features.smoothed). `unseen`, if set, tells the points (RAS mm) that the source of the object's
+/// profiles did not show (ObjectQuality::inImageShare). Sets the status and reasons with judgeQuality(`t`).
 ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& mesh, Polarity polarity,
-                             TargetMode lastForce, double noiseSigma, const QualityThresholds& t = {});
+                             TargetMode lastForce, double noiseSigma, const QualityThresholds& t = {},
+                             const std::function<bool(const Eigen::Vector3d&)>& unseen = {});
 
 /// Sets `q.status` and `q.reasons` from its figures and the limits `t`.
 void judgeQuality(ObjectQuality& q, const QualityThresholds& t = {});

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "msk/imaging/volume.h"
+#include "msk/phantom/phantom.h"
 #include "msk/phantom/phantom_pose.h"
 #include "msk/segmentation/atlas.h"
 #include "msk/segmentation/metrics.h"
@@ -39,6 +40,10 @@ Eigen::Matrix4d knownMove(double degrees, double mm, const Eigen::Vector3d& cent
 /// Phantom: the atlas from seed `atlasSeed` (un-posed), the subject seed `subjectSeed` in `pose`; femur,
 /// quadriceps, hamstrings, adductors.
 AtlasCase phantomAtlasCase(uint32_t atlasSeed, uint32_t subjectSeed, const PhantomPose& pose);
+
+/// Phantom: the atlas and the subject as the options generate them (meshes are not made): other fields of view
+/// (PhantomOptions::fovZ), voxel sizes or noise on either side.
+AtlasCase phantomAtlasCase(const PhantomOptions& atlas, const PhantomOptions& subject);
 
 /// Real CT (data/totalseg-ct): the atlas from the CT mirrored across the sacrum's mid-sagittal plane, its left femur,
 /// hip bone, gluteus maximus and medius standing for the right ones; the subject the CT moved by knownMove(degrees, mm)
