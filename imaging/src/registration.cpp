@@ -104,6 +104,7 @@ struct Pyramid {
   reg::MetricEvaluator searchEvaluator;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the reference's centre (mm): the update's pivot
   Eigen::Vector3d referenceCentroid = Eigen::Vector3d::Zero(), subjectCentroid = Eigen::Vector3d::Zero();
+  reg::ForegroundMoments referenceMoments, subjectMoments;                                   // of the coarsest level
   Eigen::Vector3d subjectLo = Eigen::Vector3d::Zero(), subjectHi = Eigen::Vector3d::Zero();  // its world box (mm)
   double radius = 1;  // RMS distance of the coarsest samples from the centre (mm)
 };
@@ -117,6 +118,8 @@ void buildPyramid(const ImageF& reference, const ImageF& subject, const Registra
   p.centre = g.toWorld(0.5 * (g.dims - Eigen::Vector3i::Ones()).cast<double>());
   p.referenceCentroid = reg::brightCentroid(ref.front());
   p.subjectCentroid = reg::brightCentroid(sub.front());
+  p.referenceMoments = reg::foregroundMoments(ref.front());
+  p.subjectMoments = reg::foregroundMoments(sub.front());
   const auto subjectBox = subject.grid.worldBounds();
   p.subjectLo = subjectBox[0];
   p.subjectHi = subjectBox[1];
@@ -277,6 +280,31 @@ std::vector<Eigen::Matrix4d> searchCandidates(const Eigen::Matrix4d& start, cons
   return out;
 }
 
+/// Candidates from the principal axes of what stands out of each image's background: each rotation that turns the
+/// reference's axes onto the subject's (the four sign choices that make it proper), with the scales of the search,
+/// the foreground centroids aligned. They reach any orientation, which the grid about `start` does not; they mean
+/// something only when both images show much the same anatomy, and only where the axes are well apart (otherwise they
+/// are a few more candidates among many).
+std::vector<Eigen::Matrix4d> momentCandidates(const RegistrationOptions& opts, const Pyramid& p) {
+  std::vector<double> scales{1.0};
+  if (opts.model != PriorTransform::Rigid && opts.searchScale > 0)
+    scales = {1.0, 1.0 - opts.searchScale, 1.0 + opts.searchScale};
+  const Eigen::Matrix3d& A = p.referenceMoments.axes;
+  const Eigen::Matrix3d& B = p.subjectMoments.axes;
+  std::vector<Eigen::Matrix4d> out;
+  for (int signs = 0; signs < 8; ++signs) {
+    const Eigen::Vector3d flip((signs & 1) ? -1 : 1, (signs & 2) ? -1 : 1, (signs & 4) ? -1 : 1);
+    const Eigen::Matrix3d R = B * flip.asDiagonal() * A.transpose();
+    if (R.determinant() < 0) continue;
+    for (double s : scales) {
+      const Eigen::Matrix3d L = s * R;
+      out.push_back(
+          transformThrough(L, p.centre, p.subjectMoments.centroid - L * (p.referenceMoments.centroid - p.centre)));
+    }
+  }
+  return out;
+}
+
 /// Coarse search: scores every candidate on the search samples, refines the best kSearchKeep with rigid (or
 /// similarity) gradient steps at the coarsest level and returns the best.
 StageOutcome search(Pyramid& p, const Eigen::Matrix4d& start, const RegistrationOptions& opts) {
@@ -284,7 +312,9 @@ StageOutcome search(Pyramid& p, const Eigen::Matrix4d& start, const Registration
   const double overlapAtStart = p.searchEvaluator.evaluate(start, model, false).overlap;
   std::vector<std::pair<double, Eigen::Matrix4d>> scored;
   const std::vector<Eigen::Vector3d> anchors = scanTranslations(p, start, overlapAtStart);
-  for (const Eigen::Matrix4d& T : searchCandidates(start, opts, p, anchors))
+  std::vector<Eigen::Matrix4d> candidates = searchCandidates(start, opts, p, anchors);
+  for (const Eigen::Matrix4d& T : momentCandidates(opts, p)) candidates.push_back(T);
+  for (const Eigen::Matrix4d& T : candidates)
     scored.emplace_back(score(p.searchEvaluator.evaluate(T, model, false), overlapAtStart), T);
   const size_t keep = std::min<size_t>(kSearchKeep, scored.size());
   std::partial_sort(scored.begin(), scored.begin() + keep, scored.end(),

@@ -1,5 +1,6 @@
 #include "registration_metric.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -143,6 +144,43 @@ Eigen::Vector3d brightCentroid(const ImageF& image) {
       }
   if (weight > 0) return sum / weight;
   return g.toWorld(0.5 * (g.dims - Eigen::Vector3i::Ones()).cast<double>());
+}
+
+ForegroundMoments foregroundMoments(const ImageF& image) {
+  const Grid& g = image.grid;
+  std::vector<double> border;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const bool face = i == 0 || j == 0 || k == 0 || i == g.dims[0] - 1 || j == g.dims[1] - 1 || k == g.dims[2] - 1;
+        if (face && std::isfinite(image.at(i, j, k))) border.push_back(image.at(i, j, k));
+      }
+  ForegroundMoments m;
+  m.centroid = g.toWorld(0.5 * (g.dims - Eigen::Vector3i::Ones()).cast<double>());
+  if (border.empty()) return m;
+  std::nth_element(border.begin(), border.begin() + static_cast<std::ptrdiff_t>(border.size() / 2), border.end());
+  const double background = border[border.size() / 2];
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  double weight = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i) {
+        const double w = std::abs(image.at(i, j, k) - background);
+        if (!(w > 0)) continue;
+        const Eigen::Vector3d x = g.toWorld(Eigen::Vector3d(i, j, k));
+        sum += w * x;
+        outer += w * x * x.transpose();
+        weight += w;
+      }
+  if (!(weight > 0)) return m;
+  m.centroid = sum / weight;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(outer / weight - m.centroid * m.centroid.transpose());
+  if (eig.info() == Eigen::Success) {
+    m.axes = eig.eigenvectors();
+    m.variances = eig.eigenvalues().cwiseMax(0.0);
+  }
+  return m;
 }
 
 int parameterCount(PriorTransform model) {

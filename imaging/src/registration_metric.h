@@ -38,6 +38,16 @@ ReferenceSamples makeSamples(const ImageF& image, int maxSamples);
 /// Intensity-weighted centroid (world mm) of the values above the image's median.
 Eigen::Vector3d brightCentroid(const ImageF& image);
 
+/// The moments of what stands out of an image's background: each voxel weighted by |value − b|, b the median of the
+/// voxels on the grid's faces (the background where the scan holds the whole body part; any modality, bright or dark
+/// anatomy alike): the centroid (world mm), the principal axes (columns, unit) and their variances (mm², ascending).
+struct ForegroundMoments {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d variances = Eigen::Vector3d::Zero();
+};
+ForegroundMoments foregroundMoments(const ImageF& image);
+
 /// Number of parameters of an update of kind `model`: 6 (rigid), 7 (similarity), 12 (affine).
 int parameterCount(PriorTransform model);
 
