@@ -158,15 +158,21 @@ ForegroundMoments foregroundMoments(const ImageF& image) {
   ForegroundMoments m;
   m.centroid = g.toWorld(0.5 * (g.dims - Eigen::Vector3i::Ones()).cast<double>());
   if (border.empty()) return m;
-  std::nth_element(border.begin(), border.begin() + static_cast<std::ptrdiff_t>(border.size() / 2), border.end());
-  const double background = border[border.size() / 2];
+  auto median = [](std::vector<double>& x) {
+    std::nth_element(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2), x.end());
+    return x[x.size() / 2];
+  };
+  const double background = median(border);
+  // The background's noise (1.4826 · MAD): differences below three times it do not count as foreground.
+  for (double& b : border) b = std::abs(b - background);
+  const double floor = 3 * 1.4826 * median(border);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0;
   for (int k = 0; k < g.dims[2]; ++k)
     for (int j = 0; j < g.dims[1]; ++j)
       for (int i = 0; i < g.dims[0]; ++i) {
-        const double w = std::abs(image.at(i, j, k) - background);
+        const double w = std::abs(image.at(i, j, k) - background) - floor;
         if (!(w > 0)) continue;
         const Eigen::Vector3d x = g.toWorld(Eigen::Vector3d(i, j, k));
         sum += w * x;
