@@ -300,9 +300,10 @@ ObjectPlacement placeObject(const Atlas& atlas, const SceneObject& obj, const Im
     op.moveMm = d.mm;
     if (!(r.metric > r.startMetric))
       op.note = "its own registration did not improve its neighbourhood's match";
-    else if (d.degrees > 30 || d.mm > 30)
+    else if (d.degrees > kMaxOwnTurnDegrees || d.mm > kMaxOwnMoveMm) {
       op.note = "its own registration moved it too far from its start";
-    else {
+      op.refusedTooFar = true;
+    } else {
       op.transform = r.transform;
       op.registered = true;
     }
@@ -467,13 +468,20 @@ Scene placedScene(const Atlas& atlas, const Placement& placement) {
 void judgePlacement(const Placement& placement, SegmentationResult& result) {
   for (size_t i = 0; i < placement.objects.size() && i < result.objects.size(); ++i) {
     const ObjectPlacement& o = placement.objects[i];
-    if (!o.keptOutOfPartner || o.moveDegrees <= kDoubtfulRefusedTurnDegrees) continue;
+    const bool undoneTurn = o.keptOutOfPartner && o.moveDegrees > kDoubtfulRefusedTurnDegrees;
+    if (!undoneTurn && !o.refusedTooFar) continue;
     ObjectQuality& q = result.objects[i].quality;
     q.status = worseStatus(q.status, QualityStatus::Doubtful);
     const std::string from = o.carriedBy.empty() ? "the global placement" : "where " + o.carriedBy + " placed it";
-    q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) + " degrees from " +
-                        from + ", more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
-                        ", and was undone because it ran into a collision partner");
+    if (undoneTurn)
+      q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) +
+                          " degrees from " + from + ", more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
+                          ", and was undone because it ran into a collision partner");
+    else
+      q.reasons.push_back("doubtful: its own registration would have moved it " + std::to_string(o.moveDegrees) +
+                          " degrees and " + std::to_string(o.moveMm) + " mm from " + from + ", beyond the " +
+                          std::to_string(kMaxOwnTurnDegrees) + " degrees / " + std::to_string(kMaxOwnMoveMm) +
+                          " mm allowed: its neighbourhood matches best elsewhere");
     result.status = worseStatus(result.status, q.status);
   }
 }

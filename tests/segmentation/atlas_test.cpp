@@ -216,7 +216,9 @@ TEST(AtlasRoute, FailuresAreFlagged) {
 // small undone turn, or a far turn kept, is not.
 TEST(AtlasRoute, AnUndoneFarTurnMakesAnObjectDoubtful) {
   msk::Placement p;
-  p.objects.resize(3);
+  p.objects.resize(4);
+  p.objects[3].refusedTooFar = true;  // its own registration would have moved it beyond the limits
+  p.objects[3].moveDegrees = msk::kMaxOwnTurnDegrees + 2;
   p.objects[0].keptOutOfPartner = true;
   p.objects[0].moveDegrees = msk::kDoubtfulRefusedTurnDegrees + 3;
   p.objects[1].keptOutOfPartner = true;
@@ -224,8 +226,11 @@ TEST(AtlasRoute, AnUndoneFarTurnMakesAnObjectDoubtful) {
   p.objects[2].registered = true;
   p.objects[2].moveDegrees = msk::kDoubtfulRefusedTurnDegrees + 10;
   msk::SegmentationResult r;
-  r.objects.resize(3);
+  r.objects.resize(4);
   msk::judgePlacement(p, r);
+  EXPECT_EQ(r.objects[3].quality.status, msk::QualityStatus::Doubtful);
+  ASSERT_EQ(r.objects[3].quality.reasons.size(), 1u);
+  EXPECT_NE(r.objects[3].quality.reasons[0].find("matches best elsewhere"), std::string::npos);
   EXPECT_EQ(r.objects[0].quality.status, msk::QualityStatus::Doubtful);
   ASSERT_EQ(r.objects[0].quality.reasons.size(), 1u);
   EXPECT_NE(r.objects[0].quality.reasons[0].find("collision partner"), std::string::npos);
