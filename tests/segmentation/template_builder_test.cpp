@@ -40,6 +40,20 @@ RadiusStats radiusStats(const msk::TriangleMesh& m, const Eigen::Vector3d& c, do
   return s;
 }
 
+// A cylinder r = 8 mm along z through the whole 1×1×3 mm grid (label 1), like a femur cut by the field of view.
+msk::LabelMap cutCylinderLabels() {
+  msk::Grid g;
+  g.spacing = {1.0, 1.0, 3.0};
+  g.dims = {30, 30, 12};
+  g.origin = {-14.5, -14.5, 0};
+  msk::LabelMap lab(g, 0);
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        if (g.toWorld(Eigen::Vector3d(i, j, k)).head<2>().norm() <= 8) lab.at(i, j, k) = 1;
+  return lab;
+}
+
 double voxelVolume(const msk::LabelMap& lab, int label) {
   return static_cast<double>(std::count(lab.data.begin(), lab.data.end(), label)) * lab.grid.spacing.prod();
 }
@@ -123,16 +137,7 @@ TEST(TemplateBuilder, LargestComponentAndAbsentLabel) {
 }
 
 TEST(TemplateBuilder, StructureCutByTheGridGetsFlatCapsOnTheVoxelBoundary) {
-  // A cylinder r = 8 along z through the whole grid (like a femur cut by the field of view).
-  msk::Grid g;
-  g.spacing = {1.0, 1.0, 3.0};
-  g.dims = {30, 30, 12};
-  g.origin = {-14.5, -14.5, 0};
-  msk::LabelMap lab(g, 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if (g.toWorld(Eigen::Vector3d(i, j, k)).head<2>().norm() <= 8) lab.at(i, j, k) = 1;
+  const msk::LabelMap lab = cutCylinderLabels();
   const msk::TriangleMesh m = msk::templateFromLabels(lab, 1);
   ASSERT_EQ(msk::closedMeshProblem(m), "");
   // Caps on the voxel boundaries z = −1.5 and z = 34.5 (voxel centres 0 … 33).
@@ -144,15 +149,8 @@ TEST(TemplateBuilder, StructureCutByTheGridGetsFlatCapsOnTheVoxelBoundary) {
 // The same cut cylinder continued beyond the faces that cut it: its section repeated straight out by the slices that
 // hold extendCutMm, the volume preserved with them; a ball that grazes a face (a section of a few voxels) is not.
 TEST(TemplateBuilder, StructureCutByTheGridIsContinuedBeyondIt) {
-  msk::Grid g;
-  g.spacing = {1.0, 1.0, 3.0};
-  g.dims = {30, 30, 12};
-  g.origin = {-14.5, -14.5, 0};
-  msk::LabelMap lab(g, 0);
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i < g.dims[0]; ++i)
-        if (g.toWorld(Eigen::Vector3d(i, j, k)).head<2>().norm() <= 8) lab.at(i, j, k) = 1;
+  const msk::LabelMap lab = cutCylinderLabels();
+  const msk::Grid& g = lab.grid;
   msk::TemplateOptions o;
   o.extendCutMm = 20;  // 7 slices of 3 mm: 21 mm
   msk::TemplateReport rep;
@@ -165,7 +163,9 @@ TEST(TemplateBuilder, StructureCutByTheGridIsContinuedBeyondIt) {
   // Straight out: the continued parts have the cut section's radius and centre.
   for (int v = 0; v < m.vertexCount(); ++v) {
     const Eigen::Vector3d p = m.vertices.row(v).transpose();
-    if (p.z() < -10 || p.z() > 45) EXPECT_LE(p.head<2>().norm(), 8.6) << p.transpose();
+    if (p.z() < -10 || p.z() > 45) {
+      EXPECT_LE(p.head<2>().norm(), 8.6) << p.transpose();
+    }
   }
   const double continued = voxelVolume(lab, 1) * (12.0 + 14.0) / 12.0;
   EXPECT_NEAR(msk::enclosedVolume(m), continued, 0.01 * continued);
