@@ -80,7 +80,7 @@ size_t whiteCount(const msk::RgbPicture& p) { return colourStats(p, {255, 255, 2
 }  // namespace
 
 TEST(QcPictures, WritesReadableRadiologicalPictures) {
-  const std::vector<msk::QcObject> objects = {{"ball", 1}, {"box", 2}};
+  const std::vector<msk::QcObject> objects = {{"ball", 1, std::nullopt}, {"box", 2, std::nullopt}};
   for (bool oblique : {false, true}) {
     SCOPED_TRACE(oblique ? "oblique grid" : "axis-aligned grid");
     const Synthetic s = synthetic(oblique);
@@ -154,7 +154,7 @@ TEST(QcPictures, OtherObjectsDimmedAndReferenceInWhite) {
   msk::LabelMap labels = s.labels, reference(s.labels.grid, 0);
   msk::test::paintBall(labels, s.ballCentre + Eigen::Vector3d(-25, 0, 0), 6, 5);
   msk::test::paintBall(reference, s.ballCentre + Eigen::Vector3d(3, 0, 0), 9, 1);
-  const std::vector<msk::QcObject> objects = {{"ball", 1}, {"other", 5}};
+  const std::vector<msk::QcObject> objects = {{"ball", 1, std::nullopt}, {"other", 5, std::nullopt}};
   ScratchDir plain, withRef;
   msk::writeQcPictures(plain.path(), s.image, labels, objects);
   msk::writeQcPictures(withRef.path(), s.image, labels, objects, &reference);
@@ -170,17 +170,18 @@ TEST(QcPictures, ErrorsAndAbsentObjects) {
   ScratchDir dir;
   const std::string missing = dir.file("no/such/folder");
   try {
-    msk::writeQcPictures(missing, s.image, s.labels, {{"ball", 1}});
+    msk::writeQcPictures(missing, s.image, s.labels, {{"ball", 1, std::nullopt}});
     ADD_FAILURE() << "no error for a missing folder";
   } catch (const msk::IoError& e) {
     EXPECT_EQ(e.file(), missing);
   }
-  EXPECT_THROW(msk::writeQcPictures(dir.path(), s.image, s.labels, {{"bad", 0}}), msk::ParameterError);
+  EXPECT_THROW(msk::writeQcPictures(dir.path(), s.image, s.labels, {{"bad", 0, std::nullopt}}), msk::ParameterError);
   EXPECT_TRUE(dir.list().empty());
 
   // An object absent from the labels still gets its three pictures (through the image centre), without contour;
   // names are made safe for file names.
-  const std::vector<std::string> files = msk::writeQcPictures(dir.path(), s.image, s.labels, {{"tibia/left", 9}});
+  const std::vector<std::string> files =
+      msk::writeQcPictures(dir.path(), s.image, s.labels, {{"tibia/left", 9, std::nullopt}});
   ASSERT_EQ(files.size(), 3u);
   EXPECT_EQ(files[0], dir.file("tibia_left_axial.png"));
   const msk::RgbPicture p = msk::readRgbPicture(files[0]);
