@@ -117,6 +117,12 @@ int cmdTemplate(const std::vector<std::string>& argv) {
             << enclosedVolume(mesh) / 1000.0 << " mL (label " << label << ": " << report.voxels << " voxels, "
             << report.maskVolumeMm3 / 1000.0 << " mL";
   if (report.componentsDropped > 0) std::cout << "; " << report.componentsDropped << " smaller component(s) dropped";
+  if (!report.extendedFaces.empty()) {
+    std::cout << "; cut by the scan's edge (";
+    for (size_t f = 0; f < report.extendedFaces.size(); ++f) std::cout << (f ? ", " : "") << report.extendedFaces[f];
+    std::cout << ") and continued " << report.extendedMm << " mm beyond it, " << report.extendedVolumeMm3 / 1000.0
+              << " mL";
+  }
   std::cout << "), smoothing " << report.sigmaMm << " mm";
   if (mirrorX) std::cout << ", mirrored across x = " << *mirrorX << " mm";
   std::cout << ", " << meshSpaceName(space) << "\n";

@@ -160,7 +160,8 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
     field.data[n] = mask[n] ? 1.f : 0.f;
     voxels += mask[n];
   }
-  double maskVolume = static_cast<double>(voxels) * g.spacing.prod();
+  const double maskVolume = static_cast<double>(voxels) * g.spacing.prod();
+  double targetVolume = maskVolume;  // the label's, and what continuing it beyond the grid adds
 
   // Faces of the grid that cut the label (its crop reaches them and its section there is not a graze): continued.
   std::vector<std::string> extendedFaces;
@@ -178,7 +179,7 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
         const int slices = std::max(1, static_cast<int>(std::ceil(opts.extendCutMm / g.spacing[a] - 1e-9)));
         const double before = std::accumulate(field.data.begin(), field.data.end(), 0.0);
         field = extendBeyondFace(field, a, side, slices);
-        maskVolume += (std::accumulate(field.data.begin(), field.data.end(), 0.0) - before) * g.spacing.prod();
+        targetVolume += (std::accumulate(field.data.begin(), field.data.end(), 0.0) - before) * g.spacing.prod();
         extendedFaces.emplace_back(anatomicalDirection(side * g.direction.col(a)));
         extendedMm = std::max(extendedMm, slices * g.spacing[a]);
       }
@@ -223,7 +224,7 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
 
   // Volume-preserving offset along the normals: δ = (V_mask − V) / area, twice (the area changes with δ), limited
   // to ±σ so that a thin structure the smoothing nearly erased is not inflated into nonsense.
-  const double offset = opts.preserveVolume ? offsetToVolume(mesh, maskVolume, sigma) : 0.0;
+  const double offset = opts.preserveVolume ? offsetToVolume(mesh, targetVolume, sigma) : 0.0;
   const std::string problem = closedMeshProblem(mesh);
   MSK_ASSERT(problem.empty(), "template of label " + std::to_string(label) + " is not closed: " + problem);
   if (report) {
@@ -234,6 +235,7 @@ TriangleMesh templateFromLabels(const LabelMap& labels, int label, const Templat
     report->offsetMm = offset;
     report->extendedFaces = extendedFaces;
     report->extendedMm = extendedMm;
+    report->extendedVolumeMm3 = targetVolume - maskVolume;
   }
   return mesh;
 }

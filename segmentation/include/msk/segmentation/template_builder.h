@@ -42,7 +42,8 @@ struct TemplateReport {
   /// The faces of the grid the label was cut by and continued beyond (extendCutMm), each named by the anatomical
   /// direction it faces ("inferior", "superior", "left", "right", "anterior", "posterior").
   std::vector<std::string> extendedFaces;
-  double extendedMm = 0;  ///< how far each was continued (the slices added × their spacing)
+  double extendedMm = 0;         ///< how far each was continued (the slices added × their spacing)
+  double extendedVolumeMm3 = 0;  ///< the volume added beyond the grid (the template encloses mask + this)
 };
 
 /// Smooth closed template of `label`: binary mask (cropped to the label with a margin, largest component) →
