@@ -30,8 +30,9 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   triangles_ = static_cast<int>(tri.rows());
   const size_t cells =
       static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) * static_cast<size_t>(layout.dims[2]);
-  start_.assign(cells + 1, 0);
-  items_.clear();
+  // Cell ci's items are items_[start_[ci], start_[ci + 1]); the counts go two places up so that the prefix sums leave
+  // start_[ci + 1] at the cell's first item, the fill's cursor, which the fill then moves on to the next cell's first.
+  start_.assign(cells + 2, 0);
   seen_.clear();  // closest() sizes it on first use
   query_ = 0;
   std::vector<CellItem>& boxes = boxes_;
@@ -57,12 +58,12 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
       for (int y = a[1]; y <= b[1]; ++y)
         for (int x = a[0]; x <= b[0]; ++x) visit(cellIndex(x, y, z));
   };
-  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { ++start_[ci + 1]; });
-  for (size_t i = 0; i < cells; ++i) start_[i + 1] += start_[i];
-  items_.resize(static_cast<size_t>(start_[cells]));
-  fill_.assign(start_.begin(), start_.end() - 1);
+  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { ++start_[ci + 2]; });
+  for (size_t i = 2; i < cells + 2; ++i) start_[i] += start_[i - 1];
+  // Resized, not cleared: every item is written below.
+  items_.resize(static_cast<size_t>(start_[cells + 1]));
   for (const CellItem& item : boxes)
-    forCells(item, [&](size_t ci) { items_[static_cast<size_t>(fill_[ci]++)] = item; });
+    forCells(item, [&](size_t ci) { items_[static_cast<size_t>(start_[ci + 1]++)] = item; });
   itemCells_.resize(items_.size());
   for (size_t k = 0; k < items_.size(); ++k) itemCells_[k] = {items_[k].cell[0], items_[k].cell[1], items_[k].cell[2]};
 }

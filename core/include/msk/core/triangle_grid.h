@@ -65,13 +65,12 @@ class TriangleGrid {
   };
   Layout layout_;
   int triangles_ = 0;
-  std::vector<int> start_;       ///< cell → its range of items_ (CSR)
+  std::vector<int> start_;       ///< cell ci → its items, items_[start_[ci], start_[ci + 1]) (CSR; one spare entry)
   std::vector<CellItem> items_;  ///< each cell's triangles, by index
   /// items_[k].cell, apart: a query's test of whether it meets a triangle in its first scanned cell reads only these
   std::vector<std::array<int, 3>> itemCells_;
   std::vector<CellItem> boxes_;  ///< build(): each triangle's box (kept to reuse its memory on the next build)
   std::vector<Eigen::Vector3i> lastCells_;  ///< build(): the cell of each box's highest corner
-  std::vector<int> fill_;                   ///< build(): each cell's next free item
   mutable std::vector<int> seen_;           ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
 };
