@@ -105,6 +105,11 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
   addNumber(app, "--muscle-target-step", o.image.muscleTargetStepEdges,
             "a muscle's image target lies at most this many local edge lengths from its vertex in a step (default "
             "1; 0: no limit; bones are not limited)");
+  app.add_option_function<double>(
+         "--reuse-targets", [&o](double v) { o.image.reuseTargetVoxels = v; },
+         "a vertex that moved less than this x the smallest spacing (normal turned < 2 deg) since its last image "
+         "search keeps its target, 0..1 (default 0.1; accurate 0: every vertex searched every step)")
+      ->type_name("NUMBER");
   addMeshSpace(app, out.space, "space of the mesh files: lps (default) or ras; tagged either way");
   app.add_flag_function(
       "--no-qc", [&out](std::int64_t) { out.qcPictures = false; }, "no QC pictures");

@@ -599,7 +599,8 @@ LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& posit
 
 TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
                                  const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
-                                 const Grid& grid, const LearnedProfiles* profiles, const ImageFeatures* focus) {
+                                 const Grid& grid, const LearnedProfiles* profiles, const ImageFeatures* focus,
+                                 SearchReuse* reuse) {
   requireSameRows(positions, normals);
   const Eigen::Index nv = positions.rows();
   if (polarity == Polarity::Auto)
@@ -627,6 +628,15 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
   out.offsets = Eigen::VectorXd::Zero(nv);
   out.scores = Eigen::VectorXd::Zero(nv);
   const bool focusing = focus && !profileMode && focus->sigmaMm < features.sigmaMm;
+  if (reuse && !(reuse->moveMm > 0)) reuse = nullptr;
+  if (reuse && reuse->positions.rows() != nv) {
+    reuse->positions.setConstant(nv, 3, kNaN);
+    reuse->normals.setZero(nv, 3);
+    reuse->offsets.setZero(nv);
+    reuse->scores.setZero(nv);
+  }
+  const double reuseCos = reuse ? std::cos(reuse->turnDegrees * M_PI / 180.0) : 1.0;
+  std::vector<char> wasReused(reuse ? static_cast<size_t>(nv) : 0, 0);
   // The vertices in one contiguous range per thread, each with its own samplers and scratch.
   const size_t ranges = std::max<size_t>(
       1, std::min<size_t>(static_cast<size_t>(detail::threadCount(opts.threads)), static_cast<size_t>(nv) / 256));
@@ -639,7 +649,21 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
     const Eigen::Index end = static_cast<Eigen::Index>(k + 1) * nv / static_cast<Eigen::Index>(ranges);
     for (Eigen::Index v = begin; v < end; ++v) {
       if (!unitNormal(normals, v, n) || !positions.row(v).allFinite()) continue;
-      sampler.setLine(positions.row(v).transpose(), n);
+      const Eigen::Vector3d x = positions.row(v).transpose();
+      if (reuse) {
+        const Eigen::Vector3d x0 = reuse->positions.row(v).transpose(), n0 = reuse->normals.row(v).transpose();
+        // (A NaN row, never searched, fails the test.)
+        if ((x - x0).norm() <= reuse->moveMm && n.dot(n0) >= reuseCos) {
+          const double score = reuse->scores[v];
+          if (score > 0) {
+            out.offsets[v] = (x0 + reuse->offsets[v] * n0 - x).dot(n);
+            out.scores[v] = score;
+          }
+          wasReused[static_cast<size_t>(v)] = 1;
+          continue;
+        }
+      }
+      sampler.setLine(x, n);
       VertexTarget t;
       if (profileMode) {
         const Eigen::Index len = profiles->profiles.cols();
@@ -660,12 +684,24 @@ TargetSearchResult searchTargets(const ImageFeatures& features, const Points& po
                         opts.edgeLevel, scratch);
         }
       }
-      if (t.score > 0 && std::isfinite(t.offsetMm)) {
+      const bool found = t.score > 0 && std::isfinite(t.offsetMm);
+      if (found) {
         out.offsets[v] = t.offsetMm;
         out.scores[v] = t.score;
       }
+      if (reuse) {
+        reuse->positions.row(v) = x.transpose();
+        reuse->normals.row(v) = n.transpose();
+        reuse->offsets[v] = found ? t.offsetMm : 0.0;
+        reuse->scores[v] = found ? t.score : 0.0;
+      }
     }
   });
+  if (reuse) {
+    const long kept = std::count(wasReused.begin(), wasReused.end(), 1);
+    reuse->reused += kept;
+    reuse->searched += static_cast<long>(nv) - kept;
+  }
   out.residual = out.offsets.cwiseAbs();
   if (regularise) regulariseOffsets(out.offsets, out.scores, neighbors, opts.regularisationRings);
   out.targets = positions;

@@ -43,11 +43,13 @@ void limitTargetStep(const SimplexMesh& mesh, double edges, Points& targets) {
 }  // namespace
 
 ImageTargets imageTargets(ObjectState& st, const SimplexMesh& mesh, const SegmentOptions& opts,
-                          const ImageFeatures& feat, const Grid& grid, const ImageFeatures* focus) {
+                          const ImageFeatures& feat, const Grid& grid, const ImageFeatures* focus, double reuseMoveMm) {
   const auto ts = Clock::now();
+  st.reuse.moveMm = reuseMoveMm;
+  st.reuse.turnDegrees = kReuseTurnDegrees;
   const TargetSearchResult found =
       searchTargets(feat, mesh.positions, simplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
-                    st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus);
+                    st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus, &st.reuse);
   st.searchSeconds += since(ts);
   ImageTargets out{found.targets, scoreWeights(found.scores), found.residual};
   if (opts.image.farTargetScaleMm > 0)  // robust (Cauchy) down-weighting of far targets: outliers pull less

@@ -168,6 +168,7 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     st.current = simplexFromTriangles(start);
   }
   st.search.mode = refine ? TargetMode::Gradient : st.force;
+  st.reuse.clear();
   st.search.edgeLevel = std::numeric_limits<double>::quiet_NaN();
   if (st.search.mode == TargetMode::Gradient && (opts.image.edgeLevel || refine)) {
     const SimplexMesh& at = refine ? st.current : ref.simplex;

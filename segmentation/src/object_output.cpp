@@ -57,6 +57,9 @@ void finishObject(ObjectState& st, bool unfold) {
   out.meanImageResidualMm = out.mesh.pointData["image_residual_mm"].mean();
   out.volumeMm3 = enclosedVolume(out.mesh);
   out.imageSearchSeconds = st.searchSeconds;
+  const long searches = st.reuse.searched + st.reuse.reused;
+  out.imageSearchReusedShare =
+      searches > 0 ? static_cast<double>(st.reuse.reused) / static_cast<double>(searches) : 0.0;
   const std::string problem = closedMeshProblem(out.mesh);
   if (!problem.empty()) throw Error(st.obj->name + ": the evolved surface is invalid: " + problem);
 }

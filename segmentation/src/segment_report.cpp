@@ -46,6 +46,7 @@ void addShapeAndImage(Json& j, const SegmentOptions& o, const ResolvedSettings& 
   j["global_prior_weight_end"] = o.shape.priorEnd;
   j["far_target_scale_mm"] = o.image.farTargetScaleMm;
   j["sigma_fine_voxels"] = s.sigmaFineVoxels;
+  j["reuse_target_voxels"] = s.reuseTargetVoxels;
   j["sigma_coarse_voxels"] = o.image.sigmaCoarse;
   j["range_fine_voxels"] = o.image.rangeFine;
   j["range_coarse_voxels"] = o.image.rangeCoarse;
@@ -149,6 +150,7 @@ Json objectJson(const ObjectResult& o) {
   j["force"] = o.force == TargetMode::Profile ? "profile" : "gradient";
   j["vertices"] = o.mesh.vertexCount();
   j["image_search_s"] = o.imageSearchSeconds;
+  j["image_search_reused_share"] = o.imageSearchReusedShare;
   j["volume_mm3"] = o.volumeMm3;
   j["template_volume_mm3"] = o.templateVolumeMm3;
   j["template_vertices"] = o.templateVertices;

@@ -86,6 +86,8 @@ struct ObjectState {
   std::unique_ptr<TargetConstraints> targets;
   std::unique_ptr<ShapeMatchingConstraint> prior;
   LearnedProfiles profiles;
+  /// The image search's targets kept between the steps of a level (cleared as each level or pass begins).
+  SearchReuse reuse;
   /// Features of the image the object learns its profiles on when that is not the segmented one (obj->profileImage).
   FeatureCache* profileFeatures = nullptr;
   // Medial axis (objects whose model asks for one): its particles follow every object's surface in the stacked system.
@@ -153,9 +155,11 @@ struct ImageTargets {
 };
 
 /// The image targets of `mesh` (the object's current surface): the search (timed into st.searchSeconds), score weights
-/// with the optional far-target down-weighting, and a muscle's per-step limit.
+/// with the optional far-target down-weighting, and a muscle's per-step limit. `reuseMoveMm` > 0: a vertex that moved
+/// less than that since its last search in st.reuse keeps that search's target (SearchReuse).
 ImageTargets imageTargets(ObjectState& st, const SimplexMesh& mesh, const SegmentOptions& opts,
-                          const ImageFeatures& feat, const Grid& grid, const ImageFeatures* focus);
+                          const ImageFeatures& feat, const Grid& grid, const ImageFeatures* focus,
+                          double reuseMoveMm = 0);
 
 // ---- axis_first_stage.cpp
 

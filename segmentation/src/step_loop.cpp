@@ -27,6 +27,7 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
   const int threads = threadCount(opts.evolution.threads);
   const int moving = static_cast<int>(std::count(fixed.begin(), fixed.end(), 0));
   const int threadsPerObject = std::max(1, threads / std::max(1, moving));
+  const double reuseMoveMm = rs.reuseTargetVoxels * grid.spacing.minCoeff();
   for (int s = 0; s < rs.maxStepsPerLevel; ++s) {
     if (s % kSettleWindow == 0) {
       lastWindowStart.swap(windowStart);
@@ -43,7 +44,7 @@ LevelReport runSteps(std::vector<ObjectState>& objs, const std::vector<char>& fi
       st.search.threads = threadsPerObject;
       if (st.prior) st.prior->setLambda(shape.priorStart + (shape.priorEnd - shape.priorStart) * runFraction);
       st.current.positions = solver.positions().middleRows(st.first, st.current.vertexCount());
-      const ImageTargets found = imageTargets(st, st.current, opts, feat, grid, focus);
+      const ImageTargets found = imageTargets(st, st.current, opts, feat, grid, focus, reuseMoveMm);
       st.targets->setTargets(found.targets, found.weights);
       st.residual = found.residual;
     });

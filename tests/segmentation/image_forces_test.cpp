@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -561,6 +562,72 @@ TEST(ImageForcesGradient, ManyVerticesFindTheEdge) {
   const RadialError e = radialError(res.targets);
   EXPECT_LT(std::abs(e.mean), 0.15);
   EXPECT_LT(e.maxAbs, 0.6);
+}
+
+TEST(ImageForcesReuse, AVertexThatBarelyMovedKeepsItsTargetPoint) {
+  const ImageF image = darkBall();
+  const ImageFeatures f = computeImageFeatures(image, 1.0);
+  const Sphere s = makeSphere(23.0);
+  const Eigen::Index nv = s.positions.rows();
+  TargetSearchOptions opts;
+  opts.regularisationRings = 0;  // the raw offsets, as kept
+  SearchReuse reuse;
+  reuse.moveMm = 0.12;
+  reuse.turnDegrees = 2;
+
+  // The first search searches every vertex and answers as a search without a record.
+  const TargetSearchResult first = searchTargets(f, s.positions, s.normals, s.neighbors, opts, Polarity::DarkInside,
+                                                 image.grid, nullptr, nullptr, &reuse);
+  const TargetSearchResult plain =
+      searchTargets(f, s.positions, s.normals, s.neighbors, opts, Polarity::DarkInside, image.grid);
+  EXPECT_EQ(reuse.searched, nv);
+  EXPECT_EQ(reuse.reused, 0);
+  EXPECT_TRUE(first.targets == plain.targets);
+  EXPECT_TRUE(first.scores == plain.scores);
+
+  // Even vertices move 0.05 mm along their normal (kept), odd ones 0.5 mm (searched again).
+  Sphere moved = s;
+  for (Eigen::Index v = 0; v < nv; ++v) moved.positions.row(v) += (v % 2 == 0 ? 0.05 : 0.5) * s.normals.row(v);
+  const TargetSearchResult second = searchTargets(f, moved.positions, moved.normals, moved.neighbors, opts,
+                                                  Polarity::DarkInside, image.grid, nullptr, nullptr, &reuse);
+  const TargetSearchResult fresh =
+      searchTargets(f, moved.positions, moved.normals, moved.neighbors, opts, Polarity::DarkInside, image.grid);
+  EXPECT_EQ(reuse.reused, (nv + 1) / 2);
+  EXPECT_EQ(reuse.searched, nv + nv / 2);
+  double worst = 0;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    if (v % 2 == 0) {
+      // The same target point, its offset measured from where the vertex is now.
+      EXPECT_LT((second.targets.row(v) - first.targets.row(v)).norm(), 1e-9) << "vertex " << v;
+      EXPECT_NEAR(second.offsets[v], first.offsets[v] - 0.05, 1e-9);
+      worst = std::max(worst, (second.targets.row(v) - fresh.targets.row(v)).norm());
+    } else {
+      EXPECT_TRUE(second.targets.row(v) == fresh.targets.row(v)) << "vertex " << v;
+    }
+  }
+  // What keeping costs: the kept targets lie within a tenth of a millimetre of a new search's.
+  EXPECT_LT(worst, 0.1);
+
+  // A normal turned by 5 degrees is searched again even where the vertex has not moved.
+  Sphere turned = moved;
+  const Eigen::AngleAxisd turn(5 * kDegree, Eigen::Vector3d::UnitZ());
+  for (Eigen::Index v = 0; v < nv; ++v)
+    turned.normals.row(v) = (turn * Eigen::Vector3d(moved.normals.row(v).transpose())).transpose();
+  const long before = reuse.reused;
+  searchTargets(f, turned.positions, turned.normals, turned.neighbors, opts, Polarity::DarkInside, image.grid, nullptr,
+                nullptr, &reuse);
+  // Only normals (nearly) along the turn's axis stay within 2 degrees.
+  long alongAxis = 0;
+  for (Eigen::Index v = 0; v < nv; ++v)
+    if (moved.normals.row(v).dot(turned.normals.row(v)) >= std::cos(2 * kDegree)) ++alongAxis;
+  EXPECT_EQ(reuse.reused - before, alongAxis);
+  EXPECT_LT(alongAxis, nv / 10);
+
+  // Without a tolerance nothing is kept.
+  SearchReuse off;
+  searchTargets(f, s.positions, s.normals, s.neighbors, opts, Polarity::DarkInside, image.grid, nullptr, nullptr, &off);
+  searchTargets(f, s.positions, s.normals, s.neighbors, opts, Polarity::DarkInside, image.grid, nullptr, nullptr, &off);
+  EXPECT_EQ(off.reused, 0);
 }
 
 }  // namespace

@@ -175,6 +175,11 @@ TEST(Segmenter, RefusesBadParametersAndNaNImages) {
   bad = {};
   bad.image.muscleTargetStepEdges = -1;
   EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
+  bad = {};
+  bad.image.reuseTargetVoxels = 1.5;
+  EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
+  bad.image.reuseTargetVoxels = std::nan("");
+  EXPECT_THROW(msk::segmentScene(img, s, bad), msk::ParameterError);
   img.data[5] = NAN;
   EXPECT_THROW(msk::segmentScene(img, s, {}), msk::Error);
   EXPECT_THROW(msk::parseQuality("ultra"), msk::ParameterError);

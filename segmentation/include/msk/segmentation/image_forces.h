@@ -84,6 +84,26 @@ struct TargetSearchResult {
   Eigen::VectorXd residual;  ///< |offset| before regularisation (the "image residual", mm)
 };
 
+/// Targets kept between searches of one surface (searchTargets()): a vertex that has moved at most `moveMm` and turned
+/// its normal by at most `turnDegrees` since its last search keeps that search's target point, its offset measured
+/// anew along the current normal, and its score, instead of sampling the image again. Each vertex's entry is its own,
+/// so the result does not depend on the threads. Clear it whenever the image features, the search options, the
+/// profiles or the surface's vertices change.
+struct SearchReuse {
+  double moveMm = 0;                ///< 0: every vertex is searched
+  double turnDegrees = 0;           ///< largest turn of the normal
+  Points positions;                 ///< per vertex: where it was last searched (NaN row: not yet)
+  Points normals;                   ///< per vertex: its unit normal then
+  Eigen::VectorXd offsets, scores;  ///< per vertex: that search's offset (mm, before regularisation) and score
+  long searched = 0, reused = 0;    ///< counts, for reports
+  void clear() {
+    positions.resize(0, 3);
+    normals.resize(0, 3);
+    offsets.resize(0);
+    scores.resize(0);
+  }
+};
+
 /// Estimates the polarity from the mean intensity sampled 0.5–3 mm inside vs outside along the normals.
 Polarity estimatePolarity(const ImageFeatures& features, const Points& positions, const Points& normals);
 
@@ -113,6 +133,6 @@ LearnedProfiles learnProfiles(const ImageFeatures& features, const Points& posit
 TargetSearchResult searchTargets(const ImageFeatures& features, const Points& positions, const Points& normals,
                                  const NeighborTable& neighbors, const TargetSearchOptions& opts, Polarity polarity,
                                  const Grid& grid, const LearnedProfiles* profiles = nullptr,
-                                 const ImageFeatures* focus = nullptr);
+                                 const ImageFeatures* focus = nullptr, SearchReuse* reuse = nullptr);
 
 }  // namespace msk

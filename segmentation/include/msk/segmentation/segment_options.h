@@ -86,7 +86,15 @@ struct ImageSearchOptions {
   /// neighbours) from its vertex in a step, [0, 1000] (0 = no limit). Targets at interfaces a muscle cannot reach
   /// otherwise pull at full length step after step and the surface buckles between them. Bones are not limited.
   double muscleTargetStepEdges = 1.0;
+  /// > 0: a vertex that has moved less than this × the smallest voxel spacing (and turned its normal less than
+  /// kReuseTurnDegrees) since its last image search keeps that search's target instead of searching again, [0, 1]
+  /// (0: every vertex searched every step); unset = the preset's (0.1; accurate 0).
+  std::optional<double> reuseTargetVoxels;
 };
+
+/// The largest turn of a vertex's normal (degrees) with which it keeps its last image target
+/// (ImageSearchOptions::reuseTargetVoxels).
+constexpr double kReuseTurnDegrees = 2.0;
 
 /// Contacts between the objects of the scene's collision pairs, and the separation of the output surfaces.
 struct CollisionOptions {
@@ -155,10 +163,11 @@ void checkSegmentOptions(const SegmentOptions& opts);
 struct ResolvedSettings {
   int levels = 2, maxStepsPerLevel = 60;
   double toleranceMm = 0.02;
-  double sigmaFineVoxels = 0.5;  ///< σ at the finest level, × the smallest spacing (the option, or the preset's)
-  std::vector<double> sigmaMm;   ///< image scale per level, coarse first
-  std::vector<double> rangeMm;   ///< search range per level, coarse first
-  SolverOptions solver;          ///< the evolution scheme with all its settings (what Solver runs)
+  double sigmaFineVoxels = 0.5;    ///< σ at the finest level, × the smallest spacing (the option, or the preset's)
+  double reuseTargetVoxels = 0.1;  ///< ImageSearchOptions::reuseTargetVoxels (the option, or the preset's)
+  std::vector<double> sigmaMm;     ///< image scale per level, coarse first
+  std::vector<double> rangeMm;     ///< search range per level, coarse first
+  SolverOptions solver;            ///< the evolution scheme with all its settings (what Solver runs)
 };
 
 /// Applies the preset to `opts` for an image grid (scales and ranges are relative to the voxel size).

@@ -66,6 +66,8 @@ struct ObjectResult {
   /// Time of the object's own work in the evolution: the image search of its vertices, s. (The constraint projection
   /// of objects evolved together is one solve, timed for the run in SegmentationResult::secondsPerFamily.)
   double imageSearchSeconds = 0;
+  /// Of the vertices' image searches, the share that kept their last target (ImageSearchOptions::reuseTargetVoxels).
+  double imageSearchReusedShare = 0;
   double volumeMm3 = 0, templateVolumeMm3 = 0;
   double meanImageResidualMm = 0;     ///< mean |target offset| at the end
   TetMesh volumeMesh;                 ///< volumetric objects: the final tet mesh (nodes recovered from the 3-simplex)
