@@ -67,6 +67,9 @@ class SurfaceTransfer {
   Eigen::MatrixXd apply(const Eigen::MatrixXd& sourceValues) const;
   /// Distance from each target point to its bound source point (mm).
   const Eigen::VectorXd& distances() const { return distances_; }
+  /// Per target point: the source triangle's three vertex indices and their barycentric weights (rows sum to 1).
+  const Eigen::Matrix<int, Eigen::Dynamic, 3>& corners() const { return tri_; }
+  const Eigen::MatrixX3d& weights() const { return bary_; }
 
  private:
   int sourceVertexCount_ = 0;
