@@ -1,5 +1,6 @@
 // One object's model across levels: its template's resolution levels (remeshed and tetrahedralised where its model
 // asks), its polarity, and the constraint sets it gets at each level.
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -143,7 +144,12 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // An object that learns its profiles on an image of its own (an atlas's reference) judges its polarity there, where
   // its template lies on the boundary it was made from.
   st.polarity = obj.hasPolarity ? obj.polarity : Polarity::Auto;
-  if (st.polarity == Polarity::Auto) {
+  if (st.polarity == Polarity::Auto && !st.subjectFeatures.empty()) {
+    // On the first subject of several, where the template fitted onto it lies.
+    const SimplexMesh given = simplexFromTriangles(obj.profileSubjects.front().surface);
+    st.polarity =
+        estimatePolarity(st.subjectFeatures.front()->at(rs.sigmaMm[0]), given.positions, simplexVertexNormals(given));
+  } else if (st.polarity == Polarity::Auto) {
     const SimplexMesh given = st.out.remeshed ? simplexFromTriangles(obj.templ) : st.lv[0].simplex;
     Points positions = given.positions, normals = simplexVertexNormals(given);
     if (st.profileFeatures) toProfileSource(obj, positions, normals);
@@ -153,6 +159,48 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   st.out.polarity = st.polarity;
   st.current = st.lv[static_cast<size_t>(rs.levels - 1)].simplex;
 }
+
+namespace {
+
+/// The profiles of a level learned on every subject of an atlas of several and averaged: each level vertex is carried
+/// onto each subject's surface (its closest point on the template, same barycentric weights on the subject's fitted
+/// template; its small offset from the template mapped along), profiles learned there along that surface's normals,
+/// and the unit profiles summed per vertex and normalised again (a vertex without a profile on a subject leaves that
+/// subject out).
+LearnedProfiles subjectsProfiles(ObjectState& st, const LevelMeshes& level, double sigmaMm, const Grid& grid) {
+  const SceneObject& obj = *st.obj;
+  const Eigen::Matrix4d p = obj.profileSource.value_or(Eigen::Matrix4d::Identity());
+  const Eigen::Matrix3d a = p.topLeftCorner<3, 3>();
+  const SurfaceTransfer transfer(obj.templ, level.triangles.vertices);
+  const Points offset = (level.triangles.vertices - transfer.apply(obj.templ.vertices)) * a.transpose();
+  LearnedProfiles sum;
+  Eigen::VectorXi counted;
+  for (size_t k = 0; k < obj.profileSubjects.size(); ++k) {
+    TriangleMesh there = level.triangles;
+    there.vertices = transfer.apply(obj.profileSubjects[k].surface.vertices) + offset;
+    if (a.determinant() < 0) flipFaces(there);  // a mirroring map turns the level's outward winding inward there
+    const SimplexMesh at = simplexFromTriangles(there);
+    const LearnedProfiles lp =
+        learnProfiles(st.subjectFeatures[k]->at(sigmaMm), at.positions, simplexVertexNormals(at), st.search, grid);
+    if (k == 0) {
+      sum = lp;
+      counted = Eigen::VectorXi::Zero(lp.profiles.rows());
+      sum.profiles.setZero();
+    }
+    for (Eigen::Index v = 0; v < lp.profiles.rows(); ++v)
+      if (lp.profiles.row(v).squaredNorm() > 0) sum.profiles.row(v) += lp.profiles.row(v), ++counted[v];
+  }
+  for (Eigen::Index v = 0; v < sum.profiles.rows(); ++v) {
+    const double norm = sum.profiles.row(v).norm();
+    if (counted[v] > 0 && norm > 1e-6 * counted[v])
+      sum.profiles.row(v) /= norm;
+    else
+      sum.profiles.row(v).setZero();
+  }
+  return sum;
+}
+
+}  // namespace
 
 void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts, const ImageFeatures& feat,
                 const Grid& grid, bool refine) {
@@ -174,7 +222,9 @@ void enterLevel(ObjectState& st, int l, int coarsest, const SegmentOptions& opts
     const SimplexMesh& at = refine ? st.current : ref.simplex;
     st.search.edgeLevel = estimateEdgeLevel(feat, at.positions, simplexVertexNormals(at));
   }
-  if (st.search.mode == TargetMode::Profile) {
+  if (st.search.mode == TargetMode::Profile && !st.subjectFeatures.empty()) {
+    st.profiles = subjectsProfiles(st, ref, feat.sigmaMm, grid);
+  } else if (st.search.mode == TargetMode::Profile) {
     // Learned where the template came from (e.g. the mirrored contralateral structure) when the scene says so.
     Points positions = ref.simplex.positions, normals = simplexVertexNormals(ref.simplex);
     toProfileSource(*st.obj, positions, normals);

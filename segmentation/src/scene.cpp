@@ -210,13 +210,31 @@ void parseProfileSource(const Checker& check, const Json& o, const std::string& 
   if (!v->is_object())
     check.fail(at, std::string("expected {\"mirror_x\": x_mm}, {\"matrix\": 4x4} and/or {\"image\": path}, found ") +
                        v->type_name() + " " + shown(*v));
-  check.knownKeys(*v, {"mirror_x", "matrix", "image"}, at, "key");
+  check.knownKeys(*v, {"mirror_x", "matrix", "image", "subjects"}, at, "key");
   const Json* mirror = jsonMember(*v, "mirror_x");
   const Json* matrix = jsonMember(*v, "matrix");
-  if (const std::string* image = check.string(*v, "image", at, false)) {
-    const fs::path file(*image);
-    obj.profileImagePath = (file.is_absolute() ? file : folder / file).lexically_normal().string();
+  auto inFolder = [&folder](const std::string& name) {
+    const fs::path file(name);
+    return (file.is_absolute() ? file : folder / file).lexically_normal().string();
+  };
+  if (const Json* subjects = jsonMember(*v, "subjects")) {
+    if (!subjects->is_array() || subjects->empty())
+      check.fail(at, "\"subjects\" must be a non-empty array of {\"image\": path, \"surface\": path}, found " +
+                         shown(*subjects));
+    for (size_t k = 0; k < subjects->size(); ++k) {
+      const Json& e = (*subjects)[k];
+      const std::string here = at + " subjects[" + std::to_string(k) + "]";
+      if (!e.is_object())
+        check.fail(here, std::string("expected {\"image\": path, \"surface\": path}, found ") + shown(e));
+      check.knownKeys(e, {"image", "surface"}, here, "key");
+      SceneObject::Subject s;
+      s.imagePath = inFolder(*check.string(e, "image", here, true));
+      s.surfacePath = inFolder(*check.string(e, "surface", here, true));
+      obj.profileSubjects.push_back(std::move(s));
+    }
+    obj.profileImagePath = obj.profileSubjects.front().imagePath;
   }
+  if (const std::string* image = check.string(*v, "image", at, false)) obj.profileImagePath = inFolder(*image);
   if (mirror && matrix) check.fail(at, "give at most one of \"mirror_x\" and \"matrix\"");
   if (!mirror && !matrix && obj.profileImagePath.empty()) check.fail(at, "give \"mirror_x\", \"matrix\" or \"image\"");
   if (obj.model.imageForce != TargetMode::Profile)
@@ -429,10 +447,27 @@ void readTemplates(const Checker& check, Scene& scene) {
     }
     const std::string problem = templateProblem(obj.templ);
     if (!problem.empty()) check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + problem);
-    if (enclosedVolume(obj.templ) < 0) {
+    const bool inward = enclosedVolume(obj.templ) < 0;
+    if (inward) {
       flipFaces(obj.templ);
       log::warn(obj.name + " (template " + obj.templatePath +
                 "): the template is wound inward (negative enclosed volume); its faces were turned outward");
+    }
+    for (SceneObject::Subject& s : obj.profileSubjects) {
+      try {
+        s.surface = readMesh(s.surfacePath);
+      } catch (const IoError& e) {
+        check.fail(objectWhere(i, obj.name), "profiles_from surface " + e.file() + ": " + e.problem());
+      } catch (const Error& e) {
+        check.fail(objectWhere(i, obj.name), "profiles_from surface " + s.surfacePath + ": " + e.what());
+      }
+      // The template's points are carried onto the surface by vertex index: the same vertices, and no NaN.
+      if (s.surface.vertexCount() != obj.templ.vertexCount() || !s.surface.vertices.allFinite())
+        check.fail(objectWhere(i, obj.name),
+                   "profiles_from surface " + s.surfacePath + ": " + std::to_string(s.surface.vertexCount()) +
+                       " vertices, not the template's " + std::to_string(obj.templ.vertexCount()) +
+                       " (a subject's surface is the template fitted onto that subject)");
+      if (inward) flipFaces(s.surface);
     }
   }
 }
@@ -452,6 +487,17 @@ void readProfileImages(const Checker& check, Scene& scene) {
       }
     }
     obj.profileImage = it->second;
+    for (SceneObject::Subject& s : obj.profileSubjects) {
+      auto si = read.find(s.imagePath);
+      if (si == read.end()) {
+        try {
+          si = read.emplace(s.imagePath, std::make_shared<ImageF>(readNifti<float>(s.imagePath))).first;
+        } catch (const IoError& e) {
+          check.fail(objectWhere(i, obj.name), "profiles_from subject image " + e.file() + ": " + e.problem());
+        }
+      }
+      s.image = si->second;
+    }
   }
 }
 
@@ -629,6 +675,12 @@ Json sceneJson(const Scene& scene, const std::string& folder) {
     if (o.profileSource || !o.profileImagePath.empty()) {
       Json source = o.profileSource ? profileSourceJson(*o.profileSource) : Json::object();
       if (!o.profileImagePath.empty()) source["image"] = pathFrom(folder, o.profileImagePath);
+      if (!o.profileSubjects.empty()) {
+        Json subjects = Json::array();
+        for (const SceneObject::Subject& s : o.profileSubjects)
+          subjects.push_back({{"image", pathFrom(folder, s.imagePath)}, {"surface", pathFrom(folder, s.surfacePath)}});
+        source["subjects"] = subjects;
+      }
       j["profiles_from"] = source;
     }
     objects.push_back(j);

@@ -90,6 +90,8 @@ struct ObjectState {
   SearchReuse reuse;
   /// Features of the image the object learns its profiles on when that is not the segmented one (obj->profileImage).
   FeatureCache* profileFeatures = nullptr;
+  /// Features of each subject of obj->profileSubjects (an atlas of several), in their order.
+  std::vector<FeatureCache*> subjectFeatures;
   // Medial axis (objects whose model asks for one): its particles follow every object's surface in the stacked system.
   MedialAxis axis;              ///< at the current level, template position
   RadialAttachment attachment;  ///< surface vertices of this level → axis segments, reference radii

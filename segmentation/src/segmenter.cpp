@@ -201,6 +201,11 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       if (!cache) cache = std::make_unique<FeatureCache>(*own);
       objs[i].profileFeatures = cache.get();
     }
+    for (const SceneObject::Subject& s : scene.objects[i].profileSubjects) {
+      std::unique_ptr<FeatureCache>& cache = profileCaches[s.image.get()];
+      if (!cache) cache = std::make_unique<FeatureCache>(*s.image);
+      objs[i].subjectFeatures.push_back(cache.get());
+    }
   }
   // The objects' templates (remeshing, levels, tets, polarity) are prepared on the threads: each reads the prepared
   // scales and writes only its own state.

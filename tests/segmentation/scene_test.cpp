@@ -13,7 +13,9 @@
 #include "msk/core/simplex_internal_constraint.h"
 #include "msk/core/transform_fit.h"
 #include "msk/imaging/mesh_io.h"
+#include "msk/imaging/nifti_io.h"
 #include "msk/phantom/phantom.h"
+#include "msk/test/ball_scenarios.h"
 #include "msk/test/files.h"
 
 namespace {
@@ -630,6 +632,42 @@ TEST(Scene, ProfilesFromErrorsNameTheObjectAndTheProblem) {
       f.scene(twoObjects(
           R"(, "force": "profile", "profiles_from": {"matrix": [[1,0,0,0],[0,1,0,0],[1,1,0,0],[0,0,0,1]]})")),
       {"singular"});
+}
+
+TEST(Scene, ProfilesFromSubjectsReadsEachImageOnceAndEachSurface) {
+  SceneFiles f;
+  msk::writeNifti(f.dir().file("s.nii.gz"), msk::ImageF(msk::test::boxGrid({1, 1, 1}, {4, 4, 4}), 1.f),
+                  msk::DataType::Float32);
+  msk::writeMesh(f.dir().file("fitted.vtk"), msk::makeIcosphere(12, 2, Eigen::Vector3d(1, 2, 3)));
+  msk::writeMesh(f.dir().file("coarse.vtk"), msk::makeIcosphere(10, 1));
+  const std::string two = R"(, "force": "profile", "profiles_from": {"subjects": [
+      {"image": "s.nii.gz", "surface": "a.vtk"}, {"image": "s.nii.gz", "surface": "fitted.vtk"}]})";
+  const msk::Scene s = msk::loadScene(f.scene(twoObjects(two)));
+  const msk::SceneObject& o = s.objects[0];
+  ASSERT_EQ(o.profileSubjects.size(), 2u);
+  ASSERT_TRUE(o.profileSubjects[0].image);
+  EXPECT_EQ(o.profileSubjects[0].image, o.profileSubjects[1].image);  // one file, read once
+  EXPECT_EQ(o.profileImage, o.profileSubjects[0].image);              // the first subject's, as no "image" is given
+  EXPECT_TRUE(msk::hasProfileSource(o));
+  EXPECT_NEAR(o.profileSubjects[1].surface.vertices.row(0).norm(),
+              (msk::makeIcosphere(12, 2).vertices.row(0) + Eigen::RowVector3d(1, 2, 3)).norm(), 1e-4);
+  // Written and read back: the same subjects.
+  msk::writeScene(s, f.dir().file("again.json"));
+  const msk::Scene again = msk::loadScene(f.dir().file("again.json"));
+  ASSERT_EQ(again.objects[0].profileSubjects.size(), 2u);
+  EXPECT_EQ(again.objects[0].profileSubjects[1].surfacePath, f.dir().file("fitted.vtk"));
+
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"subjects": [
+      {"image": "s.nii.gz", "surface": "coarse.vtk"}]})")),
+                   {"objects[0] (femur)", "coarse.vtk", "42 vertices, not the template's 162"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"subjects": []})")),
+                   {"profiles_from", "non-empty array"});
+  expectSceneError(
+      f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"subjects": [{"image": "s.nii.gz"}]})")),
+      {"subjects[0]", "surface"});
+  expectSceneError(f.scene(twoObjects(R"(, "force": "profile", "profiles_from": {"subjects": [
+      {"image": "none.nii.gz", "surface": "a.vtk"}]})")),
+                   {"objects[0] (femur)", "none.nii.gz"});
 }
 
 TEST(Scene, ToProfileSourceMirrorsPointsAndKeepsNormalsOutward) {

@@ -86,6 +86,17 @@ struct SceneObject {
   /// atlas's reference image, whose world the template and profileSource then refer to); empty: the segmented image.
   std::string profileImagePath;
   std::shared_ptr<const ImageF> profileImage;  ///< read by loadScene(), shared by the objects naming the same file
+  /// {"subjects": [{"image": path, "surface": path}, ...]} in "profiles_from" (an atlas of several subjects): the
+  /// profiles are learned on each subject's image where the template's points lie on that subject's surface, and
+  /// averaged. Each surface is the template fitted onto that subject (the template's vertex count and order; in the
+  /// subject image's world, which profileSource maps into as it does into profileImage's). profileImage is the first
+  /// subject's image unless "image" names another.
+  struct Subject {
+    std::string imagePath, surfacePath;
+    std::shared_ptr<const ImageF> image;
+    TriangleMesh surface;
+  };
+  std::vector<Subject> profileSubjects;
 };
 
 // CollisionMode, CollisionTarget and CollisionResolution (with their names) live in msk/core/collision_response.h.
