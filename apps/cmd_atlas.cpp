@@ -46,10 +46,21 @@ int cmdAtlas(const std::vector<std::string>& argv) {
       "intensity profiles on the reference image, and atlas.json (format version, objects with labels, kinds and "
       "colours, the intensity normalisation, checksums of the sources and of every file). `mskseg segment --atlas "
       "DIR` then places it in a new subject by registration.");
-  std::string imagePath, labelsPath, objects, out, collisions = "auto", modality;
+  std::vector<std::string> imagePaths, labelsPaths;
+  std::string objects, out, collisions = "auto", modality, shape = "auto";
   AtlasOptions opts;
-  app.add_option("--image", imagePath, "the reference subject's image (NIfTI)")->required();
-  app.add_option("--labels", labelsPath, "its label map (NIfTI, same grid)")->required();
+  app.add_option("--image", imagePaths,
+                 "a subject's image (NIfTI); repeat with --labels for several subjects of one protocol, the first "
+                 "the reference")
+      ->required();
+  app.add_option("--labels", labelsPaths, "that subject's label map (NIfTI, same grid; the same labels throughout)")
+      ->required();
+  app.add_option("--shape", shape,
+                 "with several subjects, which templates are the subjects' mean shape: auto (bones; muscles and "
+                 "generic objects keep the first subject's own, default), mean (all) or reference (none)")
+      ->check(CLI::IsMember({"auto", "mean", "reference"}));
+  app.add_option("--threads", opts.threads,
+                 "threads for the registrations of several subjects (default 0 = all cores)");
   app.add_option("--objects", objects, "NAME:LABEL[:KIND],... (KIND bone|muscle|generic, default generic)")->required();
   app.add_option("--collisions", collisions,
                  "auto (pairs whose templates come within 2 mm, default), all (every pair) or none")
@@ -63,6 +74,13 @@ int cmdAtlas(const std::vector<std::string>& argv) {
   addProgressTagsOption(app);
   if (handleSlicerXml(app, argv, atlasModule())) return 0;
   if (!parseArgs(app, argv)) return 0;
+  if (imagePaths.size() != labelsPaths.size())
+    throw ParameterError("--labels", std::to_string(labelsPaths.size()) + " given",
+                         "give one per --image (" + std::to_string(imagePaths.size()) + "), in the same order");
+  if (!(opts.threads >= 0 && opts.threads <= 1024))
+    throw ParameterError("--threads", std::to_string(opts.threads), "must be in [0, 1024]");
+  for (size_t k = 1; k < imagePaths.size(); ++k) opts.moreSubjects.emplace_back(imagePaths[k], labelsPaths[k]);
+  opts.shape = shape == "mean" ? AtlasShape::Mean : shape == "reference" ? AtlasShape::Reference : AtlasShape::Auto;
   opts.objects = parseAtlasObjects(objects);
   opts.collisions = collisions == "all"    ? AtlasCollisions::All
                     : collisions == "none" ? AtlasCollisions::None
@@ -72,11 +90,11 @@ int cmdAtlas(const std::vector<std::string>& argv) {
   checkOutputFolder(out);
   Json atlas;
   writeFolderAtomically(out, [&](const std::string& dir) {
-    atlas = buildAtlas(imagePath, labelsPath, opts, dir, stderrProgress("atlas"));
+    atlas = buildAtlas(imagePaths[0], labelsPaths[0], opts, dir, stderrProgress("atlas"));
   });
-  std::cout << "atlas of " << opts.objects.size() << " object(s) -> " << out << " (modality "
-            << atlas["modality"].get<std::string>() << ", reference " << atlas["reference"]["dims"][0] << "x"
-            << atlas["reference"]["dims"][1] << "x" << atlas["reference"]["dims"][2] << " voxels)\n";
+  std::cout << "atlas of " << opts.objects.size() << " object(s) from " << imagePaths.size() << " subject(s) -> " << out
+            << " (modality " << atlas["modality"].get<std::string>() << ", reference " << atlas["reference"]["dims"][0]
+            << "x" << atlas["reference"]["dims"][1] << "x" << atlas["reference"]["dims"][2] << " voxels)\n";
   for (const Json& o : atlas["objects"]) {
     std::cout << "  " << o["name"].get<std::string>() << " (label " << o["label"] << ", "
               << o["kind"].get<std::string>() << "): template " << o["template_vertices"] << " vertices, "
@@ -87,6 +105,11 @@ int cmdAtlas(const std::vector<std::string>& argv) {
         std::cout << (f ? ", " : "") << o["cut_by_field_of_view"][f].get<std::string>();
       std::cout << ") and continued " << o["extended_mm"].get<double>() << " mm beyond it";
     }
+    if (o.contains("subjects"))
+      for (const Json& f : o["subjects"])
+        if (f.contains("fit_mean_mm"))
+          std::cout << "; fitted onto subject " << f["subject"] << " to " << f["fit_mean_mm"].get<double>()
+                    << " mm (mean), volume ratio " << f["fit_volume_ratio"].get<double>();
     std::cout << "\n";
   }
   return 0;

@@ -15,6 +15,8 @@
 #include "msk/imaging/filters.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/surface_fit.h"
+#include "msk/segmentation/surface_quality.h"
 
 namespace fs = std::filesystem;
 
@@ -93,6 +95,145 @@ std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const st
   return out;
 }
 
+namespace {
+
+bool meanShapeOf(AtlasShape shape, ObjectKind kind) {
+  return shape == AtlasShape::Mean || (shape == AtlasShape::Auto && kind == ObjectKind::Bone);
+}
+
+/// The further subjects of an atlas: each registered to the reference (affine, from the reference's crop), each
+/// object's reference template fitted onto its structure there, its image cropped and written (subject_<k>.nii.gz) with
+/// the fitted templates (subject_<k>_<name>.vtk; the reference's own as subject_1_<name>.vtk); the objects learn their
+/// profiles on every subject, and their templates become the mean of the fitted ones mapped back to the reference's
+/// world (opts.meanShape). `objects` (atlas.json's entries) gets each subject's fit figures, `sources` each subject.
+void addSubjects(const AtlasOptions& opts, const std::string& modality, const ImageF& reference, Scene& scene,
+                 Json& objects, Json& sources, std::vector<std::string>& files, const std::string& dir,
+                 const ProgressFn& progress) {
+  const size_t n = scene.objects.size(), subjects = opts.moreSubjects.size() + 1;
+  std::vector<Points> sum(n);
+  for (size_t i = 0; i < n; ++i) {
+    SceneObject& obj = scene.objects[i];
+    sum[i] = obj.templ.vertices;
+    SceneObject::Subject own;
+    own.imagePath = dir + "/" + kReference;
+    own.surfacePath = fileInFolder(dir, "subject_1_" + obj.name + ".vtk");
+    own.surface = obj.templ;
+    writeMesh(own.surfacePath, own.surface, MeshSpace::LPS);
+    files.push_back(fs::path(own.surfacePath).filename().string());
+    obj.profileSubjects.push_back(own);
+    objects[i]["subjects"] = Json::array({{{"subject", 1}, {"fit", "the reference: its own template"}}});
+  }
+  for (size_t k = 0; k < opts.moreSubjects.size(); ++k) {
+    const auto& [imagePath, labelsPath] = opts.moreSubjects[k];
+    const std::string tag = "subject_" + std::to_string(k + 2);
+    if (progress) progress(static_cast<double>(k) / static_cast<double>(subjects), tag + " registration");
+    const ImageF image = readNifti<float>(imagePath);
+    if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
+    const LabelMap labels = readNifti<int32_t>(labelsPath);
+    if (!labels.grid.sameGeometry(image.grid, 1e-3))
+      throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");
+    RegistrationOptions ro;
+    ro.threads = opts.threads;
+    ro.metric = guessModality(image) == modality ? RegistrationMetric::Ncc : RegistrationMetric::MattesMi;
+    const RegistrationResult reg = registerImages(reference, image, ro);
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+    std::vector<TriangleMesh> fitted(n);
+    for (size_t i = 0; i < n; ++i) {
+      SceneObject& obj = scene.objects[i];
+      if (progress)
+        progress((static_cast<double>(k) + static_cast<double>(i + 1) / static_cast<double>(n + 1)) /
+                     static_cast<double>(subjects),
+                 tag + " " + obj.name);
+      TemplateOptions to = opts.templates;
+      if (obj.kind != ObjectKind::Bone) to.extendCutMm = 0;
+      TriangleMesh target;
+      try {
+        target = templateFromLabels(labels, obj.label, to);
+      } catch (const Error& e) {
+        throw IoError(labelsPath, "label " + std::to_string(obj.label) + " (" + obj.name + "): " + e.what());
+      }
+      TriangleMesh moving = obj.templ;
+      transformMesh(moving, reg.transform);
+      SurfaceFitReport fr;
+      fitted[i] = fitSurface(moving, target, {}, &fr);
+      if (enclosedVolume(fitted[i]) < 0) flipFaces(fitted[i]);  // a mirroring registration turned it inward
+      const auto box = meshBox(fitted[i]);
+      lo = lo.cwiseMin(box[0]);
+      hi = hi.cwiseMax(box[1]);
+
+      objects[i]["subjects"].push_back({{"subject", k + 2},
+                                        {"fit_mean_mm", fr.meanDistanceMm},
+                                        {"fit_max_mm", fr.maxDistanceMm},
+                                        {"fit_reverse_mean_mm", fr.meanReverseDistanceMm},
+                                        {"fit_volume_ratio", fr.volumeRatio},
+                                        {"fit_self_intersections", fr.selfIntersections},
+                                        {"volume_ml", enclosedVolume(target) / 1000.0}});
+      if (fr.meanDistanceMm > 1.0 || fr.meanReverseDistanceMm > 1.5 || std::abs(fr.volumeRatio - 1) > 0.1)
+        log::warn(obj.name + ": the template fitted onto " + labelsPath + " stays " +
+                  std::to_string(fr.meanDistanceMm) + " mm (mean) from its surface there, volume ratio " +
+                  std::to_string(fr.volumeRatio) + ": check that subject's labels and registration");
+    }
+    // Back in the reference's world by the one similarity that best lays all of the subject's fitted templates onto
+    // the reference's own, vertex for vertex (Procrustes): the mean is of the subjects' anatomy, not of where each
+    // subject's image registration left it (a round thigh's turn about its axis is poorly fixed by the whole image),
+    // and one map for all objects keeps them side by side as they are in the subject.
+    Eigen::Index total = 0;
+    for (size_t i = 0; i < n; ++i) total += fitted[i].vertices.rows();
+    Eigen::Matrix3Xd from(3, total), to(3, total);
+    for (size_t i = 0, at = 0; i < n; at += static_cast<size_t>(fitted[i].vertices.rows()), ++i) {
+      from.middleCols(static_cast<Eigen::Index>(at), fitted[i].vertices.rows()) = fitted[i].vertices.transpose();
+      to.middleCols(static_cast<Eigen::Index>(at), fitted[i].vertices.rows()) =
+          scene.objects[i].templ.vertices.transpose();
+    }
+    const Eigen::Matrix4d onto = Eigen::umeyama(from, to, true);
+    for (size_t i = 0; i < n; ++i) {
+      TriangleMesh home = fitted[i];
+      transformMesh(home, onto);
+      sum[i] += home.vertices;
+    }
+    const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.marginMm);
+    NiftiWriteOptions wo;
+    wo.description = "mskseg atlas subject";
+    writeNifti(dir + "/" + tag + ".nii.gz", cropToWorldBox(image, lo - margin, hi + margin), DataType::Float32, wo);
+    files.push_back(tag + ".nii.gz");
+    for (size_t i = 0; i < n; ++i) {
+      SceneObject::Subject s;
+      s.imagePath = dir + "/" + tag + ".nii.gz";
+      s.surfacePath = fileInFolder(dir, tag + "_" + scene.objects[i].name + ".vtk");
+      s.surface = fitted[i];
+      writeMesh(s.surfacePath, s.surface, MeshSpace::LPS);
+      files.push_back(fs::path(s.surfacePath).filename().string());
+      scene.objects[i].profileSubjects.push_back(std::move(s));
+    }
+    Json reg_;
+    reg_["transform_reference_to_subject"] = matrixJson(reg.transform);
+    reg_["metric"] = registrationMetricName(ro.metric);
+    reg_["metric_before"] = reg.startMetric;
+    reg_["metric_after"] = reg.metric;
+    reg_["overlap"] = reg.overlap;
+    sources.push_back({{"image", fs::absolute(imagePath).string()},
+                       {"image_sha256", sha256File(imagePath)},
+                       {"labels", fs::absolute(labelsPath).string()},
+                       {"labels_sha256", sha256File(labelsPath)},
+                       {"stored_as", tag + ".nii.gz"},
+                       {"registration", reg_}});
+  }
+  for (size_t i = 0; i < n; ++i) {
+    SceneObject& obj = scene.objects[i];
+    if (!meanShapeOf(opts.shape, obj.kind)) continue;
+    TriangleMesh mean = obj.templ;
+    mean.vertices = sum[i] / static_cast<double>(subjects);
+    if (const std::string problem = templateProblem(mean); !problem.empty()) {
+      log::warn(obj.name + ": the subjects' mean shape is not a usable surface (" + problem +
+                "); its template stays the reference's own");
+      continue;
+    }
+    obj.templ = mean;
+  }
+}
+
+}  // namespace
+
 Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, const AtlasOptions& opts,
                 const std::string& dir, const ProgressFn& progress) {
   if (opts.objects.empty()) throw ParameterError("--objects", "", "name at least one object");
@@ -136,7 +277,6 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     const auto box = meshBox(obj.templ);
     lo = lo.cwiseMin(box[0]);
     hi = hi.cwiseMax(box[1]);
-    writeMesh(obj.templatePath, obj.templ, MeshSpace::LPS);
     Json o;
     o["name"] = spec.name;
     o["label"] = spec.label;
@@ -144,7 +284,6 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     o["colour"] = objectColour(spec.kind, i);
     o["template"] = fs::path(obj.templatePath).filename().string();
     o["template_vertices"] = obj.templ.vertexCount();
-    o["template_volume_ml"] = enclosedVolume(obj.templ) / 1000.0;
     o["label_voxels"] = tr.voxels;
     Json cut = Json::array();
     for (const std::string& face : tr.extendedFaces) cut.push_back(face);
@@ -152,6 +291,22 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     o["extended_mm"] = tr.extendedMm;
     objects.push_back(o);
     scene.objects.push_back(std::move(obj));
+  }
+  // The reference image: the templates' box grown by the margin, voxels and affine as read.
+  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.marginMm);
+  const ImageF reference = cropToWorldBox(image, lo - margin, hi + margin);
+  const std::string modality = opts.modality.empty() ? guessModality(image) : opts.modality;
+  Json sources = Json::array();
+  sources.push_back({{"image", fs::absolute(imagePath).string()},
+                     {"image_sha256", sha256File(imagePath)},
+                     {"labels", fs::absolute(labelsPath).string()},
+                     {"labels_sha256", sha256File(labelsPath)}});
+  std::vector<std::string> extraFiles;
+  if (!opts.moreSubjects.empty())
+    addSubjects(opts, modality, reference, scene, objects, sources, extraFiles, dir, progress);
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    writeMesh(scene.objects[i].templatePath, scene.objects[i].templ, MeshSpace::LPS);
+    objects[i]["template_volume_ml"] = enclosedVolume(scene.objects[i].templ) / 1000.0;
   }
   if (opts.collisions == AtlasCollisions::Auto) scene.autoCollisions = AutoCollisions{};
   if (opts.collisions == AtlasCollisions::All)
@@ -165,9 +320,6 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   scene.description = "atlas from " + fs::path(imagePath).filename().string();
   writeScene(scene, dir + "/" + kScene);
 
-  // The reference image: the templates' box grown by the margin, voxels and affine as read.
-  const Eigen::Vector3d margin = Eigen::Vector3d::Constant(opts.marginMm);
-  const ImageF reference = cropToWorldBox(image, lo - margin, hi + margin);
   NiftiWriteOptions wo;
   wo.description = "mskseg atlas reference";
   writeNifti(dir + "/" + kReference, reference, DataType::Float32, wo);
@@ -176,7 +328,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   atlas["format"] = kFormat;
   atlas["format_version"] = kAtlasFormatVersion;
   atlas["mskseg_version"] = MSK_VERSION;
-  atlas["modality"] = opts.modality.empty() ? guessModality(image) : opts.modality;
+  atlas["modality"] = modality;
   Json ref;
   ref["image"] = kReference;
   ref["dims"] = Json::array({reference.grid.dims[0], reference.grid.dims[1], reference.grid.dims[2]});
@@ -193,18 +345,19 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   norm["reference_p99"] = percentile(reference, 99.0);
   norm["profiles"] = "zero-mean unit-norm, compared by normalised cross-correlation";
   atlas["intensity_normalisation"] = norm;
+  for (size_t i = 0; i < scene.objects.size(); ++i)
+    objects[i]["shape"] = !opts.moreSubjects.empty() && meanShapeOf(opts.shape, scene.objects[i].kind)
+                              ? "the mean of the " + std::to_string(sources.size()) +
+                                    " subjects' fitted templates, laid onto the reference by one similarity each"
+                              : "the reference's own";
   atlas["objects"] = objects;
   atlas["collisions"] = opts.collisions == AtlasCollisions::Auto  ? "auto"
                         : opts.collisions == AtlasCollisions::All ? "all"
                                                                   : "none";
-  Json src;
-  src["image"] = fs::absolute(imagePath).string();
-  src["image_sha256"] = sha256File(imagePath);
-  src["labels"] = fs::absolute(labelsPath).string();
-  src["labels_sha256"] = sha256File(labelsPath);
-  atlas["sources"] = Json::array({src});
+  atlas["sources"] = sources;  // the reference first
   Json files = Json::object();
   for (const auto& f : {std::string(kReference), std::string(kScene)}) files[f] = sha256File(dir + "/" + f);
+  for (const std::string& f : extraFiles) files[f] = sha256File(dir + "/" + f);
   for (const SceneObject& o : scene.objects)
     files[fs::path(o.templatePath).filename().string()] = sha256File(o.templatePath);
   atlas["files_sha256"] = files;
@@ -224,9 +377,11 @@ Atlas loadAtlas(const std::string& dir) {
   if (!format || !format->is_string() || format->get<std::string>() != kFormat)
     throw IoError(metaPath, std::string("\"format\" is not \"") + kFormat + "\"");
   const Json* version = jsonMember(a.meta, "format_version");
-  if (!version || !version->is_number_integer() || version->get<int>() != kAtlasFormatVersion)
+  if (!version || !version->is_number_integer() || version->get<int>() > kAtlasFormatVersion ||
+      version->get<int>() < kAtlasOldestFormatVersion)
     throw IoError(metaPath, "format version " + (version ? version->dump() : std::string("missing")) +
-                                ", this mskseg reads version " + std::to_string(kAtlasFormatVersion));
+                                ", this mskseg reads versions " + std::to_string(kAtlasOldestFormatVersion) + " to " +
+                                std::to_string(kAtlasFormatVersion));
   const Json* files = jsonMember(a.meta, "files_sha256");
   if (!files || !files->is_object() || !jsonMember(*files, kReference) || !jsonMember(*files, kScene))
     throw IoError(metaPath, "\"files_sha256\" must list reference.nii.gz, scene.json and the templates");
@@ -249,6 +404,12 @@ Atlas loadAtlas(const std::string& dir) {
     if (!files->contains(fs::path(o.templatePath).filename().string()) ||
         fs::path(o.templatePath).parent_path().lexically_normal() != fs::path(dir).lexically_normal())
       throw IoError(metaPath, "template of " + o.name + " is not one of the atlas's checked files");
+    for (const SceneObject::Subject& sub : o.profileSubjects)
+      for (const std::string& f : {sub.imagePath, sub.surfacePath})
+        if (!files->contains(fs::path(f).filename().string()) ||
+            fs::path(f).parent_path().lexically_normal() != fs::path(dir).lexically_normal())
+          throw IoError(metaPath, "subject file " + fs::path(f).filename().string() + " of " + o.name +
+                                      " is not one of the atlas's checked files");
     if (o.profileImage) a.reference = o.profileImage;
   }
   if (!a.reference) a.reference = std::make_shared<ImageF>(readNifti<float>((fs::path(dir) / kReference).string()));

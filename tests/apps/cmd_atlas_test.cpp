@@ -1,14 +1,16 @@
 // End-to-end tests of `mskseg atlas` and `mskseg segment --atlas`: a complete, checked atlas folder from the bundled
-// sample; an atlas folder that is incomplete, of another format version or changed after it was built refused with
-// one line naming the file and nothing written; malformed object lists and labels refused.
+// sample, and one of two subjects; an atlas folder that is incomplete, of another format version or changed after it
+// was built refused with one line naming the file and nothing written; malformed object lists and labels refused.
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "msk/imaging/checksum.h"
 #include "msk/imaging/json.h"
+#include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/test/cli.h"
 #include "msk/test/files.h"
@@ -46,7 +48,7 @@ TEST(AtlasCli, SampleAtlasIsCompleteWithChecksumsAndAReadableScene) {
                                       "template_femur.vtk", "template_hamstrings.vtk", "template_quadriceps.vtk"}));
   const msk::Json meta = msk::readJsonFile(atlas + "/atlas.json");
   EXPECT_EQ(meta["format"], "mskseg-atlas");
-  EXPECT_EQ(meta["format_version"], 1);
+  EXPECT_EQ(meta["format_version"], 2);
   EXPECT_EQ(meta["modality"], "mr");
   ASSERT_EQ(meta["objects"].size(), 4u);
   EXPECT_EQ(meta["objects"][0]["name"], "femur");
@@ -89,9 +91,9 @@ TEST(AtlasCli, BrokenAtlasFoldersAreOneLineNamingTheFileAndNothingIsWritten) {
   // Another format version.
   const std::string future = copyOf("future");
   msk::Json meta = msk::readJsonFile(future + "/atlas.json");
-  meta["format_version"] = 2;
+  meta["format_version"] = 3;
   msk::writeJsonFile(future + "/atlas.json", meta);
-  expectOneLineError(segment(future), 1, "atlas.json", "format version 2");
+  expectOneLineError(segment(future), 1, "atlas.json", "format version 3");
   // A file changed after the atlas was built.
   const std::string changed = copyOf("changed");
   msk::Json scene = msk::readJsonFile(changed + "/scene.json");
@@ -101,6 +103,91 @@ TEST(AtlasCli, BrokenAtlasFoldersAreOneLineNamingTheFileAndNothingIsWritten) {
   // Not an atlas at all.
   expectOneLineError(segment(dir.file("nowhere")), 1, "nowhere", "not a folder");
   EXPECT_FALSE(fs::exists(out)) << "partial output";
+}
+
+// Two subjects: the bundled sample and phantom seed 3 posed. Every object gets a fitted template on the second subject
+// (close to its labels' surface), the femur the two subjects' mean shape, the muscles the reference's own; the scene
+// learns its profiles on both; every file is checksummed, a changed subject surface is refused, and the atlas
+// segments the sample.
+TEST(AtlasCli, AnAtlasOfTwoSubjectsFitsEachTemplateOntoTheSecondAndSegments) {
+  ScratchDir dir;
+  const std::string second = dir.file("seed3");
+  ASSERT_EQ(runCli({"phantom", "--seed", "3", "--pose", "5,-4,6,8,-6,5,1.04", "--out", second, "--quiet"}).exitCode, 0);
+  const std::string atlas = dir.file("atlas2");
+  CliResult r = runCli({"atlas", "--image", kSample + "image.nii.gz", "--labels", kSample + "labels.nii.gz", "--image",
+                        second + "/image.nii.gz", "--labels", second + "/labels.nii.gz", "--objects", kObjects,
+                        "--vertices", "600", "--out", atlas, "--quiet"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_NE(r.out.find("from 2 subject(s)"), std::string::npos) << r.out;
+  const msk::Json meta = msk::readJsonFile(atlas + "/atlas.json");
+  EXPECT_EQ(meta["sources"].size(), 2u);
+  EXPECT_EQ(meta["sources"][1]["labels_sha256"], msk::sha256File(second + "/labels.nii.gz"));
+  EXPECT_EQ(meta["sources"][1]["stored_as"], "subject_2.nii.gz");
+  for (const msk::Json& o : meta["objects"]) {
+    ASSERT_EQ(o["subjects"].size(), 2u) << o["name"];
+    const msk::Json& fit = o["subjects"][1];
+    EXPECT_LT(fit["fit_mean_mm"].get<double>(), 0.5) << o["name"];  // templates of 600 vertices
+    EXPECT_LT(fit["fit_reverse_mean_mm"].get<double>(), 0.5) << o["name"];
+    EXPECT_NEAR(fit["fit_volume_ratio"].get<double>(), 1.0, 0.02) << o["name"];
+    EXPECT_EQ(fit["fit_self_intersections"], 0) << o["name"];
+    EXPECT_EQ(o["shape"].get<std::string>().rfind(o["kind"] == "bone" ? "the mean" : "the reference", 0), 0u)
+        << o["name"];
+  }
+  // 4 templates, 2 subjects' surfaces of each, the second subject's image, the reference and the scene.
+  EXPECT_EQ(meta["files_sha256"].size(), 4u + 8u + 3u);
+  for (const auto& kv : meta["files_sha256"].items())
+    EXPECT_EQ(kv.value(), msk::sha256File(atlas + "/" + kv.key())) << kv.key();
+  const msk::Json scene = msk::readJsonFile(atlas + "/scene.json");
+  for (const msk::Json& o : scene["objects"]) {
+    ASSERT_EQ(o["profiles_from"]["subjects"].size(), 2u) << o["name"];
+    EXPECT_EQ(o["profiles_from"]["subjects"][1]["image"], "subject_2.nii.gz");
+  }
+  // The mean femur differs from the reference's own; each surface keeps the template's vertices.
+  const msk::TriangleMesh femur = msk::readMesh(atlas + "/template_femur.vtk");
+  const msk::TriangleMesh own = msk::readMesh(atlas + "/subject_1_femur.vtk");
+  const msk::TriangleMesh fitted = msk::readMesh(atlas + "/subject_2_femur.vtk");
+  ASSERT_EQ(femur.vertexCount(), own.vertexCount());
+  ASSERT_EQ(femur.vertexCount(), fitted.vertexCount());
+  EXPECT_GT((femur.vertices - own.vertices).rowwise().norm().maxCoeff(), 0.1);
+
+  const std::string out = dir.file("result");
+  r = runCli(
+      {"segment", "--image", kSample + "image.nii.gz", "--atlas", atlas, "--out", out, "--quality", "fast", "--quiet"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  const msk::Json report = msk::readJsonFile(out + "/report.json");
+  EXPECT_EQ(report["status"], "ok");
+  r = runCli({"eval", "--result", out + "/labels.nii.gz", "--reference", kSample + "labels.nii.gz"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  std::istringstream table(r.out);
+  std::string line;
+  int scored = 0;
+  std::getline(table, line);  // the header
+  while (std::getline(table, line)) {
+    std::istringstream row(line);
+    std::string name;
+    double dice = 0;
+    if (row >> name >> dice) {
+      EXPECT_GE(dice, 0.9) << line;
+      ++scored;
+    }
+  }
+  EXPECT_EQ(scored, 4) << r.out;
+
+  // A subject's surface changed after the atlas was built is refused, naming it.
+  const std::string changed = dir.file("changed");
+  fs::copy(atlas, changed, fs::copy_options::recursive);
+  msk::TriangleMesh moved = fitted;
+  moved.vertices.col(0).array() += 1.0;
+  msk::writeMesh(changed + "/subject_2_femur.vtk", moved, msk::MeshSpace::LPS);
+  expectOneLineError(
+      runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", changed, "--out", dir.file("refused")}), 1,
+      "subject_2_femur.vtk", "checksum does not match");
+  EXPECT_FALSE(fs::exists(dir.file("refused")));
+  // --image and --labels in pairs.
+  expectOneLineError(runCli({"atlas", "--image", kSample + "image.nii.gz", "--labels", kSample + "labels.nii.gz",
+                             "--image", second + "/image.nii.gz", "--objects", kObjects, "--out", dir.file("odd")}),
+                     2, "--labels", "one per --image");
+  EXPECT_FALSE(fs::exists(dir.file("odd")));
 }
 
 TEST(AtlasCli, BadObjectListsAndLabelsAreRefused) {

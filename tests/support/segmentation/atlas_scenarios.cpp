@@ -73,6 +73,21 @@ AtlasCase phantomAtlasCase(uint32_t atlasSeed, uint32_t subjectSeed, const Phant
   return phantomAtlasCase(a, s);
 }
 
+AtlasCase phantomAtlasCase(const std::vector<uint32_t>& atlasSeeds, uint32_t subjectSeed, const PhantomPose& pose) {
+  AtlasCase c = phantomAtlasCase(atlasSeeds.at(0), subjectSeed, pose);
+  c.name = "phantom seeds";
+  for (uint32_t seed : atlasSeeds) c.name += " " + std::to_string(seed);
+  c.name += " -> " + std::to_string(subjectSeed);
+  for (size_t k = 1; k < atlasSeeds.size(); ++k) {
+    PhantomOptions o;
+    o.seed = atlasSeeds[k];
+    o.meshes = false;
+    Phantom p = makePhantom(o);
+    c.moreSubjects.emplace_back(std::move(p.image), std::move(p.labels));
+  }
+  return c;
+}
+
 AtlasCase phantomAtlasCase(const PhantomOptions& atlasOptions, const PhantomOptions& subjectOptions) {
   PhantomOptions a = atlasOptions, s = subjectOptions;
   a.meshes = s.meshes = false;
@@ -134,6 +149,12 @@ AtlasRun runAtlasCase(const AtlasCase& c, const std::string& scratch, const Plac
   fs::create_directories(dir);
   AtlasOptions ao = atlasOptions;
   ao.objects = c.objects;
+  for (size_t k = 0; k < c.moreSubjects.size(); ++k) {
+    const std::string tag = scratch + "/atlas_subject" + std::to_string(k + 2);
+    writeNifti(tag + "_image.nii.gz", c.moreSubjects[k].first, DataType::Float32);
+    writeNifti(tag + "_labels.nii.gz", c.moreSubjects[k].second, DataType::Int16);
+    ao.moreSubjects.emplace_back(tag + "_image.nii.gz", tag + "_labels.nii.gz");
+  }
   auto t0 = std::chrono::steady_clock::now();
   buildAtlas(image, labels, ao, dir);
   const Atlas atlas = loadAtlas(dir);

@@ -17,7 +17,9 @@
 namespace msk {
 
 /// The atlas format this build writes and reads (atlas.json "format_version").
-constexpr int kAtlasFormatVersion = 1;
+constexpr int kAtlasFormatVersion = 2;
+/// The oldest atlas format this build reads (version 1: one subject; 2 adds several subjects).
+constexpr int kAtlasOldestFormatVersion = 1;
 
 /// One structure of an atlas to build.
 struct AtlasObjectSpec {
@@ -35,6 +37,16 @@ enum class AtlasCollisions {
   Auto,  ///< every pair whose templates come within 2 mm (scene "collisions": "auto")
   All,   ///< every pair declared
   None   ///< no collision pairs
+};
+
+/// Which templates an atlas of several subjects makes the subjects' mean shape.
+enum class AtlasShape {
+  /// Bones: the mean (every phantom femur of twelve gained 0.005–0.016 Dice); muscles and generic objects: the
+  /// reference's own (their mean over four phantoms lost 0.01 on average: a compartment's edges averaged over subjects
+  /// whose septa lie elsewhere are blunter than any subject's; docs/measurements.md).
+  Auto,
+  Mean,      ///< every object the mean
+  Reference  ///< every object the reference's own template
 };
 
 /// Parameters of buildAtlas().
@@ -57,6 +69,13 @@ struct AtlasOptions {
   TemplateOptions templates = atlasTemplateOptions();
   double marginMm = 30;  ///< the reference image is cropped to the templates' box grown by this, mm, ≥ 0
   std::string modality;  ///< "ct" | "mr"; empty: guessModality() of the image
+  /// Further subjects (image, labels: the same labels for the same structures, the same protocol as the reference).
+  /// Each is registered to the reference (affine) and each reference template fitted onto its structure there
+  /// (fitSurface()): the objects then learn their profiles on every subject and average them, and their templates are
+  /// the mean of the subjects' fitted templates laid back onto the reference (`shape`).
+  std::vector<std::pair<std::string, std::string>> moreSubjects;
+  AtlasShape shape = AtlasShape::Auto;  ///< with moreSubjects: which objects take the subjects' mean shape
+  int threads = 0;                      ///< for the registrations, 0 = all cores
 };
 
 /// Builds an atlas from a subject's image and labels into the existing, empty folder `dir` (the caller makes the

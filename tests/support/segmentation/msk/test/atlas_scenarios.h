@@ -28,6 +28,8 @@ struct AtlasCase {
   std::vector<int> referenceLabel;  ///< per object: its label in subjectLabels
   SegmentOptions options;           ///< the run's options (those of the templates-in-place scene of the same scan)
   bool refineBones = false;         ///< the bones take the refinement pass (as in the templates-in-place scene)
+  /// Further subjects of the atlas (image, labels), after the reference (atlasImage, atlasLabels).
+  std::vector<std::pair<ImageF, LabelMap>> moreSubjects;
 };
 
 /// Moves a grid in world space by the rigid motion or mirror `m` (orthonormal 3×3 part): the voxels stay, the affine
@@ -40,6 +42,10 @@ Eigen::Matrix4d knownMove(double degrees, double mm, const Eigen::Vector3d& cent
 /// Phantom: the atlas from seed `atlasSeed` (un-posed), the subject seed `subjectSeed` in `pose`; femur,
 /// quadriceps, hamstrings, adductors.
 AtlasCase phantomAtlasCase(uint32_t atlasSeed, uint32_t subjectSeed, const PhantomPose& pose);
+
+/// Phantom: the atlas from the seeds `atlasSeeds` (un-posed; the first the reference), the subject seed `subjectSeed`
+/// in `pose`.
+AtlasCase phantomAtlasCase(const std::vector<uint32_t>& atlasSeeds, uint32_t subjectSeed, const PhantomPose& pose);
 
 /// Phantom: the atlas and the subject as the options generate them (meshes are not made): other fields of view
 /// (PhantomOptions::fovZ), voxel sizes or noise on either side.
