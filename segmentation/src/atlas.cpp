@@ -126,7 +126,7 @@ void addSubjects(const AtlasOptions& opts, const std::string& modality, const Im
   for (size_t k = 0; k < opts.moreSubjects.size(); ++k) {
     const auto& [imagePath, labelsPath] = opts.moreSubjects[k];
     const std::string tag = "subject_" + std::to_string(k + 2);
-    if (progress) progress(static_cast<double>(k) / static_cast<double>(subjects), tag + " registration");
+    if (progress) progress(static_cast<double>(k + 1) / static_cast<double>(subjects), tag + " registration");
     const ImageF image = readNifti<float>(imagePath);
     if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
     const LabelMap labels = readNifti<int32_t>(labelsPath);
@@ -141,7 +141,7 @@ void addSubjects(const AtlasOptions& opts, const std::string& modality, const Im
     for (size_t i = 0; i < n; ++i) {
       SceneObject& obj = scene.objects[i];
       if (progress)
-        progress((static_cast<double>(k) + static_cast<double>(i + 1) / static_cast<double>(n + 1)) /
+        progress((static_cast<double>(k + 1) + static_cast<double>(i + 1) / static_cast<double>(n + 1)) /
                      static_cast<double>(subjects),
                  tag + " " + obj.name);
       TemplateOptions to = opts.templates;
@@ -256,7 +256,11 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     const AtlasObjectSpec& spec = opts.objects[i];
     if (!counts.count(spec.label))
       throw IoError(labelsPath, "label " + std::to_string(spec.label) + " (" + spec.name + ") not found");
-    if (progress) progress(static_cast<double>(i) / static_cast<double>(opts.objects.size() + 1), spec.name);
+    // The reference's templates are the first of the subjects' equal shares of the work.
+    if (progress)
+      progress(static_cast<double>(i) / static_cast<double>(opts.objects.size() + 1) /
+                   static_cast<double>(opts.moreSubjects.size() + 1),
+               spec.name);
     TemplateReport tr;
     SceneObject obj;
     obj.name = spec.name;

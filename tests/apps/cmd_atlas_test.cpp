@@ -94,6 +94,13 @@ TEST(AtlasCli, BrokenAtlasFoldersAreOneLineNamingTheFileAndNothingIsWritten) {
   meta["format_version"] = 3;
   msk::writeJsonFile(future + "/atlas.json", meta);
   expectOneLineError(segment(future), 1, "atlas.json", "format version 3");
+  // Version 1 (one subject, the same files) is still read.
+  const std::string older = copyOf("older");
+  meta["format_version"] = 1;
+  msk::writeJsonFile(older + "/atlas.json", meta);
+  const CliResult v1 = runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", older, "--out",
+                               dir.file("from_v1"), "--quality", "fast", "--no-qc", "--quiet"});
+  EXPECT_EQ(v1.exitCode, 0) << v1.err;
   // A file changed after the atlas was built.
   const std::string changed = copyOf("changed");
   msk::Json scene = msk::readJsonFile(changed + "/scene.json");
