@@ -97,6 +97,32 @@ std::vector<AtlasObjectSpec> parseAtlasObjects(const std::string& text, const st
 
 namespace {
 
+/// A subject's image and labels, read and checked: no NaN or constant image, labels on the image's grid.
+std::pair<ImageF, LabelMap> readSubject(const std::string& imagePath, const std::string& labelsPath) {
+  ImageF image = readNifti<float>(imagePath);
+  if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
+  LabelMap labels = readNifti<int32_t>(labelsPath);
+  if (!labels.grid.sameGeometry(image.grid, 1e-3))
+    throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");
+  return {std::move(image), std::move(labels)};
+}
+
+/// atlas.json's entry for a source subject: its files and their checksums.
+Json sourceJson(const std::string& imagePath, const std::string& labelsPath) {
+  return {{"image", fs::absolute(imagePath).string()},
+          {"image_sha256", sha256File(imagePath)},
+          {"labels", fs::absolute(labelsPath).string()},
+          {"labels_sha256", sha256File(labelsPath)}};
+}
+
+/// The template options for an object of `kind`: only bones are continued beyond the scan's edge
+/// (AtlasOptions::templates).
+TemplateOptions templateOptionsFor(const AtlasOptions& opts, ObjectKind kind) {
+  TemplateOptions to = opts.templates;
+  if (kind != ObjectKind::Bone) to.extendCutMm = 0;
+  return to;
+}
+
 bool meanShapeOf(AtlasShape shape, ObjectKind kind) {
   return shape == AtlasShape::Mean || (shape == AtlasShape::Auto && kind == ObjectKind::Bone);
 }
@@ -104,8 +130,9 @@ bool meanShapeOf(AtlasShape shape, ObjectKind kind) {
 /// The further subjects of an atlas: each registered to the reference (affine, from the reference's crop), each
 /// object's reference template fitted onto its structure there, its image cropped and written (subject_<k>.nii.gz) with
 /// the fitted templates (subject_<k>_<name>.vtk; the reference's own as subject_1_<name>.vtk); the objects learn their
-/// profiles on every subject, and their templates become the mean of the fitted ones mapped back to the reference's
-/// world (opts.meanShape). `objects` (atlas.json's entries) gets each subject's fit figures, `sources` each subject.
+/// profiles on every subject, and the templates meanShapeOf() names become the mean of the fitted ones laid back onto
+/// the reference (opts.shape). `objects` (atlas.json's entries) gets each subject's fit figures, `sources` each
+/// subject.
 void addSubjects(const AtlasOptions& opts, const std::string& modality, const ImageF& reference, Scene& scene,
                  Json& objects, Json& sources, std::vector<std::string>& files, const std::string& dir,
                  const ProgressFn& progress) {
@@ -127,11 +154,7 @@ void addSubjects(const AtlasOptions& opts, const std::string& modality, const Im
     const auto& [imagePath, labelsPath] = opts.moreSubjects[k];
     const std::string tag = "subject_" + std::to_string(k + 2);
     if (progress) progress(static_cast<double>(k + 1) / static_cast<double>(subjects), tag + " registration");
-    const ImageF image = readNifti<float>(imagePath);
-    if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
-    const LabelMap labels = readNifti<int32_t>(labelsPath);
-    if (!labels.grid.sameGeometry(image.grid, 1e-3))
-      throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");
+    const auto [image, labels] = readSubject(imagePath, labelsPath);
     RegistrationOptions ro;
     ro.threads = opts.threads;
     ro.metric = guessModality(image) == modality ? RegistrationMetric::Ncc : RegistrationMetric::MattesMi;
@@ -144,11 +167,9 @@ void addSubjects(const AtlasOptions& opts, const std::string& modality, const Im
         progress((static_cast<double>(k + 1) + static_cast<double>(i + 1) / static_cast<double>(n + 1)) /
                      static_cast<double>(subjects),
                  tag + " " + obj.name);
-      TemplateOptions to = opts.templates;
-      if (obj.kind != ObjectKind::Bone) to.extendCutMm = 0;
       TriangleMesh target;
       try {
-        target = templateFromLabels(labels, obj.label, to);
+        target = templateFromLabels(labels, obj.label, templateOptionsFor(opts, obj.kind));
       } catch (const Error& e) {
         throw IoError(labelsPath, "label " + std::to_string(obj.label) + " (" + obj.name + "): " + e.what());
       }
@@ -211,12 +232,10 @@ void addSubjects(const AtlasOptions& opts, const std::string& modality, const Im
     reg_["metric_before"] = reg.startMetric;
     reg_["metric_after"] = reg.metric;
     reg_["overlap"] = reg.overlap;
-    sources.push_back({{"image", fs::absolute(imagePath).string()},
-                       {"image_sha256", sha256File(imagePath)},
-                       {"labels", fs::absolute(labelsPath).string()},
-                       {"labels_sha256", sha256File(labelsPath)},
-                       {"stored_as", tag + ".nii.gz"},
-                       {"registration", reg_}});
+    Json source = sourceJson(imagePath, labelsPath);
+    source["stored_as"] = tag + ".nii.gz";
+    source["registration"] = reg_;
+    sources.push_back(source);
   }
   for (size_t i = 0; i < n; ++i) {
     SceneObject& obj = scene.objects[i];
@@ -240,12 +259,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   if (!(opts.marginMm >= 0 && opts.marginMm <= 500))
     throw ParameterError("--margin", std::to_string(opts.marginMm), "must be in [0, 500] mm");
   checkTemplateOptions(opts.templates);
-  NiftiInfo info;
-  const ImageF image = readNifti<float>(imagePath, &info);
-  if (const std::string problem = imageProblem(image); !problem.empty()) throw IoError(imagePath, problem);
-  const LabelMap labels = readNifti<int32_t>(labelsPath);
-  if (!labels.grid.sameGeometry(image.grid, 1e-3))
-    throw IoError(labelsPath, "not on the grid of " + imagePath + " (dimensions or affine differ)");
+  const auto [image, labels] = readSubject(imagePath, labelsPath);
   std::map<int32_t, size_t> counts;
   for (int32_t v : labels.data) ++counts[v];
 
@@ -266,10 +280,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
     obj.name = spec.name;
     obj.label = spec.label;
     obj.kind = spec.kind;
-    // Only bones are continued beyond the scan's edge (AtlasOptions::templates).
-    TemplateOptions to = opts.templates;
-    if (spec.kind != ObjectKind::Bone) to.extendCutMm = 0;
-    obj.templ = templateFromLabels(labels, spec.label, to, &tr);
+    obj.templ = templateFromLabels(labels, spec.label, templateOptionsFor(opts, spec.kind), &tr);
     obj.templatePath = fileInFolder(dir, "template_" + spec.name + ".vtk");
     obj.model = defaultModel(spec.kind);
     const Json colour = objectColour(spec.kind, i);
@@ -301,10 +312,7 @@ Json buildAtlas(const std::string& imagePath, const std::string& labelsPath, con
   const ImageF reference = cropToWorldBox(image, lo - margin, hi + margin);
   const std::string modality = opts.modality.empty() ? guessModality(image) : opts.modality;
   Json sources = Json::array();
-  sources.push_back({{"image", fs::absolute(imagePath).string()},
-                     {"image_sha256", sha256File(imagePath)},
-                     {"labels", fs::absolute(labelsPath).string()},
-                     {"labels_sha256", sha256File(labelsPath)}});
+  sources.push_back(sourceJson(imagePath, labelsPath));
   std::vector<std::string> extraFiles;
   if (!opts.moreSubjects.empty())
     addSubjects(opts, modality, reference, scene, objects, sources, extraFiles, dir, progress);

@@ -165,8 +165,8 @@ namespace {
 /// The profiles of a level learned on every subject of an atlas of several and averaged: each level vertex is carried
 /// onto each subject's surface (its closest point on the template, same barycentric weights on the subject's fitted
 /// template; its small offset from the template mapped along), profiles learned there along that surface's normals,
-/// and the unit profiles summed per vertex and normalised again (a vertex without a profile on a subject leaves that
-/// subject out).
+/// and the unit profiles summed per vertex and normalised again (a vertex without a profile on a subject, a zero row,
+/// adds nothing).
 LearnedProfiles subjectsProfiles(ObjectState& st, const LevelMeshes& level, double sigmaMm, const Grid& grid) {
   const SceneObject& obj = *st.obj;
   const Eigen::Matrix4d p = obj.profileSource.value_or(Eigen::Matrix4d::Identity());
@@ -174,7 +174,6 @@ LearnedProfiles subjectsProfiles(ObjectState& st, const LevelMeshes& level, doub
   const SurfaceTransfer transfer(obj.templ, level.triangles.vertices);
   const Points offset = (level.triangles.vertices - transfer.apply(obj.templ.vertices)) * a.transpose();
   LearnedProfiles sum;
-  Eigen::VectorXi counted;
   for (size_t k = 0; k < obj.profileSubjects.size(); ++k) {
     TriangleMesh there = level.triangles;
     there.vertices = transfer.apply(obj.profileSubjects[k].surface.vertices) + offset;
@@ -182,17 +181,14 @@ LearnedProfiles subjectsProfiles(ObjectState& st, const LevelMeshes& level, doub
     const SimplexMesh at = simplexFromTriangles(there);
     const LearnedProfiles lp =
         learnProfiles(st.subjectFeatures[k]->at(sigmaMm), at.positions, simplexVertexNormals(at), st.search, grid);
-    if (k == 0) {
+    if (k == 0)
       sum = lp;
-      counted = Eigen::VectorXi::Zero(lp.profiles.rows());
-      sum.profiles.setZero();
-    }
-    for (Eigen::Index v = 0; v < lp.profiles.rows(); ++v)
-      if (lp.profiles.row(v).squaredNorm() > 0) sum.profiles.row(v) += lp.profiles.row(v), ++counted[v];
+    else
+      sum.profiles += lp.profiles;
   }
   for (Eigen::Index v = 0; v < sum.profiles.rows(); ++v) {
     const double norm = sum.profiles.row(v).norm();
-    if (counted[v] > 0 && norm > 1e-6 * counted[v])
+    if (norm > 1e-6)
       sum.profiles.row(v) /= norm;
     else
       sum.profiles.row(v).setZero();

@@ -478,26 +478,19 @@ void readProfileImages(const Checker& check, Scene& scene) {
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     SceneObject& obj = scene.objects[i];
     if (obj.profileImagePath.empty()) continue;
-    auto it = read.find(obj.profileImagePath);
-    if (it == read.end()) {
-      try {
-        it = read.emplace(obj.profileImagePath, std::make_shared<ImageF>(readNifti<float>(obj.profileImagePath))).first;
-      } catch (const IoError& e) {
-        check.fail(objectWhere(i, obj.name), "profiles_from image " + e.file() + ": " + e.problem());
-      }
-    }
-    obj.profileImage = it->second;
-    for (SceneObject::Subject& s : obj.profileSubjects) {
-      auto si = read.find(s.imagePath);
-      if (si == read.end()) {
+    auto image = [&](const std::string& path, const char* what) {
+      auto it = read.find(path);
+      if (it == read.end()) {
         try {
-          si = read.emplace(s.imagePath, std::make_shared<ImageF>(readNifti<float>(s.imagePath))).first;
+          it = read.emplace(path, std::make_shared<ImageF>(readNifti<float>(path))).first;
         } catch (const IoError& e) {
-          check.fail(objectWhere(i, obj.name), "profiles_from subject image " + e.file() + ": " + e.problem());
+          check.fail(objectWhere(i, obj.name), std::string(what) + " " + e.file() + ": " + e.problem());
         }
       }
-      s.image = si->second;
-    }
+      return it->second;
+    };
+    obj.profileImage = image(obj.profileImagePath, "profiles_from image");
+    for (SceneObject::Subject& s : obj.profileSubjects) s.image = image(s.imagePath, "profiles_from subject image");
   }
 }
 
