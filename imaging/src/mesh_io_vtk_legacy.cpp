@@ -85,7 +85,7 @@ class Parser {
         readField(nullptr, 0);
       } else if (key == "points") {
         numPoints = count("number of points");
-        const std::vector<double> xyz = values(parseValueType(word()), 3 * static_cast<size_t>(numPoints));
+        const std::vector<double> xyz = numbers(parseValueType(word()), 3 * static_cast<size_t>(numPoints), "POINTS");
         m.vertices = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
             xyz.data(), static_cast<Eigen::Index>(numPoints), 3);
       } else if (key == "metadata") {
@@ -185,6 +185,11 @@ class Parser {
     skipOptionalMetadata();
     return out;
   }
+  /// `values` for an array that must hold numbers (coordinates, offsets, indices): a string array is refused.
+  std::vector<double> numbers(ValueType t, size_t n, const char* what) {
+    if (t.kind == ValueType::String) fail(std::string(what) + " of type string");
+    return values(t, n);
+  }
   void need(size_t bytes) const {
     if (bytes > b_.size() - pos_) fail("file ends inside a binary data block (truncated)");
   }
@@ -237,9 +242,9 @@ class Parser {
     };
     if (major_ >= 5) {
       if (lowercase(word()) != "offsets") fail("OFFSETS expected in " + key);
-      const std::vector<double> offsets = values(parseValueType(word()), static_cast<size_t>(a));
+      const std::vector<double> offsets = numbers(parseValueType(word()), static_cast<size_t>(a), "OFFSETS");
       if (lowercase(word()) != "connectivity") fail("CONNECTIVITY expected in " + key);
-      const std::vector<double> conn = values(parseValueType(word()), static_cast<size_t>(b));
+      const std::vector<double> conn = numbers(parseValueType(word()), static_cast<size_t>(b), "CONNECTIVITY");
       if (a == 0 ? b != 0 : (offsets.front() != 0 || offsets.back() != static_cast<double>(b)))
         fail("offsets do not match the connectivity in " + key);
       for (long long c = 0; c + 1 < a; ++c) {

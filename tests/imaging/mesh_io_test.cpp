@@ -346,6 +346,29 @@ TEST(MeshIo, TruncatedEmptyAndNonFiniteFilesAreIoErrors) {
   expectIoError([&] { msk::readMesh(nan); }, nan);
 }
 
+/// Coordinates, offsets and indices declared as strings are not numbers: the reader says so (a string array
+/// is otherwise skipped, leaving nothing to read the vertices or cells from).
+TEST(MeshIo, NumericArraysDeclaredAsStringsAreIoErrors) {
+  msk::test::ScratchDir dir;
+  const std::string points = dir.file("points.vtk");
+  msk::test::writeBytes(points,
+                        "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 string\n"
+                        "a\nb\nc\nd\ne\nf\ng\nh\ni\nPOLYGONS 1 4\n3 0 1 2\n");
+  expectIoError([&] { msk::readMesh(points); }, points, "POINTS of type string");
+
+  const std::string offsets = dir.file("offsets.vtk");
+  msk::test::writeBytes(offsets,
+                        "# vtk DataFile Version 5.1\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n"
+                        "0 0 0 1 0 0 0 1 0\nPOLYGONS 2 3\nOFFSETS string\na\nb\nCONNECTIVITY vtktypeint64\n0 1 2\n");
+  expectIoError([&] { msk::readMesh(offsets); }, offsets, "OFFSETS of type string");
+
+  const std::string connectivity = dir.file("connectivity.vtk");
+  msk::test::writeBytes(connectivity,
+                        "# vtk DataFile Version 5.1\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n"
+                        "0 0 0 1 0 0 0 1 0\nPOLYGONS 2 3\nOFFSETS vtktypeint64\n0 3\nCONNECTIVITY string\na\nb\nc\n");
+  expectIoError([&] { msk::readMesh(connectivity); }, connectivity, "CONNECTIVITY of type string");
+}
+
 /// An icosphere of radius 10 mm without the faces above z = 5 mm: open by a hole far too large to fill.
 TriangleMesh cutSphere() {
   const TriangleMesh sphere = msk::makeIcosphere(10.0, 2);
