@@ -213,6 +213,7 @@ bool parseBatch(const std::vector<std::string>& argvIn, CohortSettings& b) {
     // The atlas options of `segment` are checked there; here they are only passed on.
     for (const char* flag : {"--no-register", "--no-object-register"}) segment.add_flag(flag);
     segment.add_option("--metric")->check(CLI::IsMember({"auto", "ncc", "mi"}));
+    segment.add_option("--starts")->check(CLI::IsMember({"each", "reference"}));
     for (const char* own : {"--image", "--scene", "--out", "--help", "-h"})
       if (std::find(b.forwarded.begin(), b.forwarded.end(), own) != b.forwarded.end())
         throw UsageError(std::string("option ") + own + " after --: the batch sets it for each case");

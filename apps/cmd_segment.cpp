@@ -241,6 +241,9 @@ SlicerModule segmentModule() {
         P("file", "--init-transform", "Initial transform").extensions(".tfm,.txt,.json"),
         P("boolean", "--no-register", "No registration").byDefault("false"),
         P("boolean", "--no-object-register", "No per-object registration").byDefault("false"),
+        P("string-enumeration", "--starts", "Starts (atlas of several subjects)")
+            .byDefault("each")
+            .choices({"each", "reference"}),
         progressTagsParameter()}});
   return m;
 }
@@ -253,7 +256,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
       "Evolves each object's template (2-simplex mesh, coarse to fine) under image targets along the normal, its "
       "shape memory and a global shape prior; objects evolve together, and the scene's collision pairs keep their "
       "surfaces apart.");
-  std::string imagePath, scenePath, atlasDir, out, metric = "auto", initTransform, labelMapPath, surfacesPath;
+  std::string imagePath, scenePath, atlasDir, out, metric = "auto", initTransform, labelMapPath, surfacesPath,
+                                                   startsName = "each";
   PlacementOptions placing;
   bool noRegister = false, noObjectRegister = false;
   app.add_option("--image", imagePath, "the image (NIfTI)")->required();
@@ -274,6 +278,11 @@ int cmdSegment(const std::vector<std::string>& argv) {
                "it");
   app.add_flag("--no-object-register", noObjectRegister,
                "with --atlas: the global registration only, no registration of each object's neighbourhood");
+  app.add_option("--starts", startsName,
+                 "with an --atlas of several subjects: each (the default: a run from each subject's templates, "
+                 "then each object from the subject whose run matched the learned appearance best; one run per "
+                 "subject and one more) or reference (one run from the reference's templates)")
+      ->check(CLI::IsMember({"each", "reference"}));
   CLI::Option* outOpt =
       app.add_option("--out", out,
                      "output folder, created with its parents (appears whole or not at all; an existing folder gets "
@@ -307,8 +316,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (!labelMapPath.empty() && !isNiftiName(labelMapPath))
     throw UsageError("--label-map '" + labelMapPath + "': use a .nii.gz or .nii name");
   if (!surfacesPath.empty()) requireMeshOutput(surfacesPath);
-  if (!atlasOpt->count() && (noRegister || noObjectRegister || metric != "auto" || !initTransform.empty()))
-    throw UsageError("--metric, --init-transform, --no-register and --no-object-register need --atlas");
+  if (!atlasOpt->count() &&
+      (noRegister || noObjectRegister || metric != "auto" || !initTransform.empty() || startsName != "each"))
+    throw UsageError("--metric, --init-transform, --no-register, --no-object-register and --starts need --atlas");
   checkSegmentOptions(opts);
   if (opts.evolution.threads == 0)  // the report names the number used
     opts.evolution.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -325,6 +335,8 @@ int cmdSegment(const std::vector<std::string>& argv) {
   }
   Scene scene;
   std::optional<Placement> placement;
+  std::optional<AtlasSegmentation> fromAtlas;
+  SegmentationResult res;
   if (atlasOpt->count()) {
     if (!initTransform.empty()) placing.start = readLinearTransform(initTransform);
     const Atlas atlas = loadAtlas(atlasDir);
@@ -332,15 +344,21 @@ int cmdSegment(const std::vector<std::string>& argv) {
     placing.perObject = !noObjectRegister;
     placing.metric = parseRegistrationMetric(metric);
     placing.threads = 0;
-    placement = placeAtlas(atlas, image, placing, stderrProgress("placement"));
-    scene = placedScene(atlas, *placement);
+    fromAtlas = segmentWithAtlas(
+        atlas, image, placing, opts, startsName == "reference" ? AtlasStarts::Reference : AtlasStarts::Each,
+        stderrProgress("segment"), [&](Scene& placed) {
+          if (const std::string problem = coverageProblem(image.grid, placed); !problem.empty())
+            throw IoError(imagePath, problem);
+        });
+    placement = fromAtlas->placement;
+    scene = std::move(fromAtlas->scene);
+    res = std::move(fromAtlas->result);
   } else {
     scene = loadScene(scenePath);
+    if (const std::string problem = coverageProblem(image.grid, scene); !problem.empty())
+      throw IoError(imagePath, problem);
+    res = segmentScene(image, scene, opts, stderrProgress("segment"));
   }
-  if (const std::string problem = coverageProblem(image.grid, scene); !problem.empty())
-    throw IoError(imagePath, problem);
-  SegmentationResult res = segmentScene(image, scene, opts, stderrProgress("segment"));
-  if (placement) judgePlacement(*placement, res);
 
   Json report;
   report["mskseg_version"] = MSK_VERSION;
@@ -349,6 +367,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (placement) {
     report["atlas"] = fs::absolute(atlasDir).string();
     report["placement"] = placementJson(*placement);
+    if (fromAtlas->starts.size() > 1) report["placement"]["starts"] = atlasStartsJson(*fromAtlas, scene);
     if (!initTransform.empty()) report["placement"]["init_transform"] = fs::absolute(initTransform).string();
   } else {
     report["scene"] = fs::absolute(scenePath).string();

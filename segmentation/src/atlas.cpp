@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -641,22 +642,159 @@ Scene placedScene(const Atlas& atlas, const Placement& placement) {
 void judgePlacement(const Placement& placement, SegmentationResult& result) {
   for (size_t i = 0; i < placement.objects.size() && i < result.objects.size(); ++i) {
     const ObjectPlacement& o = placement.objects[i];
-    const bool undoneTurn = o.keptOutOfPartner && o.moveDegrees > kDoubtfulRefusedTurnDegrees;
-    if (!undoneTurn && !o.refusedTooFar) continue;
+    if (!o.refusedTooFar) continue;
     ObjectQuality& q = result.objects[i].quality;
     q.status = worseStatus(q.status, QualityStatus::Doubtful);
     const std::string from = o.carriedBy.empty() ? "the global placement" : "where " + o.carriedBy + " placed it";
-    if (undoneTurn)
-      q.reasons.push_back("doubtful: its own registration turned it " + std::to_string(o.moveDegrees) +
-                          " degrees from " + from + ", more than " + std::to_string(kDoubtfulRefusedTurnDegrees) +
-                          ", and was undone because it ran into a collision partner");
-    else
-      q.reasons.push_back("doubtful: its own registration would have moved it " + std::to_string(o.moveDegrees) +
-                          " degrees and " + std::to_string(o.moveMm) + " mm from " + from + ", beyond the " +
-                          std::to_string(kMaxOwnTurnDegrees) + " degrees / " + std::to_string(kMaxOwnMoveMm) +
-                          " mm allowed: its neighbourhood matches best elsewhere");
+    q.reasons.push_back("doubtful: its own registration would have moved it " + std::to_string(o.moveDegrees) +
+                        " degrees and " + std::to_string(o.moveMm) + " mm from " + from + ", beyond the " +
+                        std::to_string(kMaxOwnTurnDegrees) + " degrees / " + std::to_string(kMaxOwnMoveMm) +
+                        " mm allowed: its neighbourhood matches best elsewhere");
     result.status = worseStatus(result.status, q.status);
   }
+}
+
+size_t atlasSubjectCount(const Atlas& atlas) {
+  if (atlas.scene.objects.empty()) return 1;
+  return std::max<size_t>(1, atlas.scene.objects.front().profileSubjects.size());
+}
+
+Eigen::Matrix4d atlasReferenceToSubject(const Atlas& atlas, size_t k) {
+  if (k == 0) return Eigen::Matrix4d::Identity();
+  const std::string metaPath = (fs::path(atlas.dir) / "atlas.json").string();
+  const Json* sources = jsonMember(atlas.meta, "sources");
+  const Json* m = nullptr;
+  if (sources && sources->is_array() && k < sources->size())
+    if (const Json* reg = jsonMember((*sources)[k], "registration"))
+      m = jsonMember(*reg, "transform_reference_to_subject");
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  bool ok = m && m->is_array() && m->size() == 4;
+  for (size_t r = 0; ok && r < 4; ++r) {
+    const Json& row = (*m)[r];
+    ok = row.is_array() && row.size() == 4;
+    for (size_t c = 0; ok && c < 4; ++c) {
+      ok = row[c].is_number() && std::isfinite(row[c].get<double>());
+      if (ok) t(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = row[c].get<double>();
+    }
+  }
+  if (!ok || std::abs(t.topLeftCorner<3, 3>().determinant()) < 1e-9 || t.row(3) != Eigen::RowVector4d(0, 0, 0, 1))
+    throw IoError(metaPath, "sources[" + std::to_string(k) +
+                                "] has no usable \"registration\": \"transform_reference_to_subject\" (an affine 4x4)");
+  return t;
+}
+
+Atlas atlasFromSubject(const Atlas& atlas, size_t k) {
+  const size_t n = atlasSubjectCount(atlas);
+  if (k >= n) throw Error("atlas subject " + std::to_string(k + 1) + " of " + std::to_string(n) + " asked for");
+  if (k == 0) return atlas;
+  Atlas view = atlas;
+  for (SceneObject& o : view.scene.objects) {
+    if (o.profileSubjects.size() != n)
+      throw IoError(
+          (fs::path(atlas.dir) / kScene).string(),
+          o.name + " lists " + std::to_string(o.profileSubjects.size()) + " subjects, the atlas " + std::to_string(n));
+    const SceneObject::Subject& s = o.profileSubjects[k];
+    o.templ = s.surface;
+    o.templatePath = s.surfacePath;
+    o.profileImage = s.image;
+    o.profileImagePath = s.imagePath;
+  }
+  view.reference = view.scene.objects.front().profileSubjects[k].image;
+  return view;
+}
+
+namespace {
+
+/// Each object's start: the subject whose run reached the highest profile match for it (the reference where no run
+/// has one, e.g. the gradient force, and on ties).
+std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs, size_t objects) {
+  std::vector<size_t> chosen(objects, 0);
+  for (size_t i = 0; i < objects; ++i) {
+    double best = -std::numeric_limits<double>::infinity();
+    for (const AtlasStartRun& r : runs) {
+      const double m = r.profileMatch[i];
+      if (std::isfinite(m) && m > best) {
+        best = m;
+        chosen[i] = r.subject;
+      }
+    }
+  }
+  return chosen;
+}
+
+}  // namespace
+
+AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
+                                   const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress,
+                                   const std::function<void(Scene&)>& beforeRun) {
+  const size_t subjects = starts == AtlasStarts::Each ? atlasSubjectCount(atlas) : 1;
+  const size_t runs = subjects == 1 ? 1 : subjects + 1;  // the final run, unless every object keeps one start
+  auto share = [&](size_t run, const std::string& what) -> ProgressFn {
+    if (!progress) return {};
+    return [&progress, run, runs, what](double f, const std::string& stage) {
+      progress((static_cast<double>(run) + f) / static_cast<double>(runs), what + stage);
+    };
+  };
+  const size_t n = atlas.scene.objects.size();
+  std::vector<Scene> scenes;
+  std::vector<SegmentationResult> results;
+  AtlasSegmentation out;
+  for (size_t k = 0; k < subjects; ++k) {
+    const auto t0 = Clock::now();
+    const Atlas view = atlasFromSubject(atlas, k);
+    PlacementOptions po = placing;
+    if (k > 0 && (placing.start || !placing.registration))
+      po.start = Eigen::Matrix4d(placing.start.value_or(Eigen::Matrix4d::Identity()) *
+                                 atlasReferenceToSubject(atlas, k).inverse());
+    const ProgressFn part = share(k, subjects > 1 ? "subject " + std::to_string(k + 1) + ": " : "");
+    ProgressFn placingPart, segmentPart;
+    if (part) {
+      placingPart = [&part](double f, const std::string& s) { part(0.1 * f, s); };
+      segmentPart = [&part](double f, const std::string& s) { part(0.1 + 0.9 * f, s); };
+    }
+    Placement p = placeAtlas(view, image, po, placingPart);
+    Scene scene = placedScene(view, p);
+    if (beforeRun) beforeRun(scene);
+    SegmentationResult r = segmentScene(image, scene, opts, segmentPart);
+    judgePlacement(p, r);
+    AtlasStartRun run;
+    run.subject = k;
+    for (const ObjectResult& o : r.objects) {
+      run.profileMatch.push_back(o.quality.profileMatch);
+      run.status.push_back(o.quality.status);
+    }
+    run.placement = std::move(p);
+    run.seconds = since(t0);
+    out.starts.push_back(std::move(run));
+    scenes.push_back(std::move(scene));
+    results.push_back(std::move(r));
+  }
+  out.chosen = bestStarts(out.starts, n);
+  // The final placement: the reference's global placement, each object its start's own (in that subject's world).
+  out.placement = out.starts[0].placement;
+  out.placement.seconds = 0;
+  for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
+  for (size_t i = 0; i < n; ++i) out.placement.objects[i] = out.starts[out.chosen[i]].placement.objects[i];
+  const bool one = std::all_of(out.chosen.begin(), out.chosen.end(), [&](size_t k) { return k == out.chosen[0]; });
+  if (one) {
+    const size_t k = out.chosen.empty() ? 0 : out.chosen[0];
+    out.placement.pairs = out.starts[k].placement.pairs;
+    out.scene = std::move(scenes[k]);
+    out.result = std::move(results[k]);
+  } else {
+    // Each object from its best start, side by side, in one run with every collision pair; the pairs measured again.
+    out.scene = scenes[0];
+    for (size_t i = 0; i < n; ++i) out.scene.objects[i] = scenes[out.chosen[i]].objects[i];
+    for (size_t c = 0; c < out.scene.collisions.size() && c < out.placement.pairs.size(); ++c) {
+      const CollisionPair& cp = out.scene.collisions[c];
+      out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
+                                                         out.scene.objects[static_cast<size_t>(cp.b)].templ);
+    }
+    out.result = segmentScene(image, out.scene, opts, share(subjects, "from the best starts: "));
+    judgePlacement(out.placement, out.result);
+  }
+  if (progress) progress(1.0, "done");
+  return out;
 }
 
 Json placementJson(const Placement& placement) {
@@ -710,6 +848,32 @@ Json placementJson(const Placement& placement) {
     pairs.push_back(pj);
   }
   j["pairs"] = pairs;
+  return j;
+}
+
+Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene) {
+  Json j;
+  j["subjects"] = seg.starts.size();
+  Json runs = Json::array();
+  for (const AtlasStartRun& r : seg.starts) {
+    Json rj;
+    rj["subject"] = r.subject + 1;
+    if (r.placement.registration) rj["global_metric"] = r.placement.registration->metric;
+    rj["seconds"] = r.seconds;
+    rj["placement_seconds"] = r.placement.seconds;
+    Json objects = Json::object();
+    for (size_t i = 0; i < r.profileMatch.size() && i < scene.objects.size(); ++i)
+      objects[scene.objects[i].name] = {
+          {"profile_match", std::isfinite(r.profileMatch[i]) ? Json(r.profileMatch[i]) : Json()},
+          {"status", qualityStatusName(r.status[i])}};
+    rj["objects"] = objects;
+    runs.push_back(rj);
+  }
+  j["runs"] = runs;
+  Json chosen = Json::object();
+  for (size_t i = 0; i < seg.chosen.size() && i < scene.objects.size(); ++i)
+    chosen[scene.objects[i].name] = seg.chosen[i] + 1;
+  j["start_of_each_object"] = chosen;
   return j;
 }
 

@@ -163,6 +163,15 @@ TEST(AtlasCli, AnAtlasOfTwoSubjectsFitsEachTemplateOntoTheSecondAndSegments) {
   ASSERT_EQ(r.exitCode, 0) << r.err;
   const msk::Json report = msk::readJsonFile(out + "/report.json");
   EXPECT_EQ(report["status"], "ok");
+  // A run from each subject; on the reference's own image every object keeps the reference's start (its own
+  // templates match its own appearance best).
+  const msk::Json& starts = report["placement"]["starts"];
+  ASSERT_EQ(starts["runs"].size(), 2u) << report["placement"].dump();
+  for (const msk::Json& run : starts["runs"]) {
+    ASSERT_EQ(run["objects"].size(), 4u);
+    for (const auto& kv : run["objects"].items()) EXPECT_GT(kv.value()["profile_match"].get<double>(), 0.5) << kv.key();
+  }
+  for (const auto& kv : starts["start_of_each_object"].items()) EXPECT_EQ(kv.value(), 1) << kv.key();
   r = runCli({"eval", "--result", out + "/labels.nii.gz", "--reference", kSample + "labels.nii.gz"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   std::istringstream table(r.out);
@@ -179,6 +188,13 @@ TEST(AtlasCli, AnAtlasOfTwoSubjectsFitsEachTemplateOntoTheSecondAndSegments) {
     }
   }
   EXPECT_EQ(scored, 4) << r.out;
+
+  // --starts reference: one run, from the reference.
+  const std::string one = dir.file("one");
+  r = runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", atlas, "--out", one, "--quality", "fast",
+              "--starts", "reference", "--quiet"});
+  ASSERT_EQ(r.exitCode, 0) << r.err;
+  EXPECT_FALSE(msk::readJsonFile(one + "/report.json")["placement"].contains("starts"));
 
   // A subject's surface changed after the atlas was built is refused, naming it.
   const std::string changed = dir.file("changed");
@@ -237,5 +253,11 @@ TEST(AtlasCli, BatchPlacesTheAtlasInEveryCase) {
   const CliResult both = runCli({"batch", "--cases", dir.file("cohort"), "--out", dir.file("other"), "--atlas", atlas,
                                  "--scene", kSample + "scene.json"});
   EXPECT_EQ(both.exitCode, 2) << both.err;
+  EXPECT_FALSE(fs::exists(dir.file("other")));
+  // segment's --starts passed on, checked before any case runs.
+  const CliResult starts = runCli(
+      {"batch", "--cases", dir.file("cohort"), "--out", dir.file("other"), "--", "--atlas", atlas, "--starts", "all"});
+  EXPECT_EQ(starts.exitCode, 2) << starts.err;
+  EXPECT_NE(starts.err.find("--starts"), std::string::npos) << starts.err;
   EXPECT_FALSE(fs::exists(dir.file("other")));
 }

@@ -196,6 +196,10 @@ TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
   check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--collision-resolution",
          "parallel"},
         2, "--collision-resolution");
+  check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--starts", "reference"}, 2,
+        "need --atlas");  // (the default, each, passes: 3D Slicer sends every parameter)
+  check({"segment", "--image", kSample + "image.nii.gz", "--atlas", dir.file("none"), "--out", out, "--starts", "all"},
+        2, "--starts");
 }
 
 // A volumetric object (scene "model": {"volumetric": true}) also gets its tet mesh written as an LPS-tagged .vtu

@@ -2,6 +2,8 @@
 // segmented loses nothing against templates already in place. Phantom: another seed in another pose. Real scans: the
 // scan mirrored (one side standing for the other) onto the scan moved by 15° and 40 mm. bench/atlas_bench prints the
 // figures.
+#include "msk/segmentation/atlas.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -28,6 +30,69 @@ double deepestMm(const AtlasRun& run) {
 }
 
 }  // namespace
+
+// An atlas of two subjects seen from the second: that subject's image is the reference, the templates fitted onto it
+// are the templates (the profiles still learned on both), and a start given in the reference's world is carried into
+// the second subject's by the registration atlas.json records. A record that is not an affine map names atlas.json.
+TEST(AtlasStarts, ASubjectsViewIsItsImageAndFittedTemplates) {
+  msk::Atlas atlas;
+  atlas.dir = "/atlases/two";
+  auto image = [](float value) {
+    msk::Grid g;
+    g.dims = Eigen::Vector3i(4, 4, 4);
+    return std::shared_ptr<const msk::ImageF>(std::make_shared<msk::ImageF>(g, value));
+  };
+  atlas.reference = image(1);
+  msk::SceneObject o;
+  o.name = "ball";
+  o.templ = msk::makeIcosphere(10, 1);
+  o.templatePath = "/atlases/two/template_ball.vtk";
+  o.profileImage = atlas.reference;
+  msk::SceneObject::Subject first, second;
+  first.image = atlas.reference;
+  first.surface = o.templ;
+  second.image = image(2);
+  second.imagePath = "/atlases/two/subject_2.nii.gz";
+  second.surface = msk::makeIcosphere(12, 1, Eigen::Vector3d(5, 0, 0));
+  second.surfacePath = "/atlases/two/subject_2_ball.vtk";
+  o.profileSubjects = {first, second};
+  atlas.scene.objects.push_back(o);
+  Eigen::Matrix4d toSecond = Eigen::Matrix4d::Identity();
+  toSecond.topRightCorner<3, 1>() = Eigen::Vector3d(5, 0, 0);
+  toSecond.topLeftCorner<3, 3>() *= 1.2;
+  msk::Json registration;
+  registration["transform_reference_to_subject"] = msk::Json::array();
+  for (int r = 0; r < 4; ++r)
+    registration["transform_reference_to_subject"].push_back(
+        {toSecond(r, 0), toSecond(r, 1), toSecond(r, 2), toSecond(r, 3)});
+  atlas.meta["sources"] = msk::Json::array({msk::Json::object(), {{"registration", registration}}});
+
+  EXPECT_EQ(msk::atlasSubjectCount(atlas), 2u);
+  const msk::Atlas view = msk::atlasFromSubject(atlas, 1);
+  EXPECT_EQ(view.reference->data[0], 2.f);
+  EXPECT_EQ(view.scene.objects[0].templ.vertices, second.surface.vertices);
+  EXPECT_EQ(view.scene.objects[0].templatePath, second.surfacePath);
+  EXPECT_EQ(view.scene.objects[0].profileImage, second.image);
+  EXPECT_EQ(view.scene.objects[0].profileSubjects.size(), 2u);
+  EXPECT_EQ(msk::atlasFromSubject(atlas, 0).scene.objects[0].templ.vertices, o.templ.vertices);
+  EXPECT_THROW(msk::atlasFromSubject(atlas, 2), msk::Error);
+  EXPECT_TRUE(msk::atlasReferenceToSubject(atlas, 1).isApprox(toSecond));
+  EXPECT_TRUE(msk::atlasReferenceToSubject(atlas, 0).isIdentity());
+
+  atlas.meta["sources"][1]["registration"]["transform_reference_to_subject"][3][3] = 0.0;
+  try {
+    msk::atlasReferenceToSubject(atlas, 1);
+    ADD_FAILURE() << "a broken registration record was used";
+  } catch (const msk::IoError& e) {
+    EXPECT_EQ(e.file(), "/atlases/two/atlas.json");
+  }
+  // One object listing fewer subjects than the atlas is refused, naming the scene.
+  msk::SceneObject short_ = o;
+  short_.name = "other";
+  short_.profileSubjects.pop_back();
+  atlas.scene.objects.push_back(short_);
+  EXPECT_THROW(msk::atlasFromSubject(atlas, 1), msk::IoError);
+}
 
 // Registration alone on the phantom: seed 1's image onto seed 1 posed by 25° and 40 mm (and by the opposite pose)
 // recovers the pose within 1° and 1 mm at the femur's centre.
@@ -95,24 +160,32 @@ TEST(AtlasRoute, PhantomSubjectInAnotherPoseAndSizeLosesNothing) {
   EXPECT_GT(run.placement.registration->metric, run.placement.registration->startMetric + 0.1);
 }
 
-// An atlas of four subjects (seeds 1, 14, 15, 16; profiles learned on all four, the femur their mean shape) on seed
-// 12 in another pose: the adductors, whose septa lie far from seed 1's, reach 0.92 where the atlas of seed 1 alone
-// stopped at 0.903 (balanced; femur / quadriceps / hamstrings / adductors 0.967 / 0.920 / 0.943 / 0.903 with seed 1
-// alone, 0.971 / 0.943 / 0.952 / 0.942 with the four, from the CLI).
-TEST(AtlasRoute, AnAtlasOfSeveralSubjectsReachesWhereOneFellShort) {
+// An atlas of four subjects (seeds 1, 14, 15, 16; profiles learned on all four, the femur their mean shape) on seed 4
+// in another pose, whose hamstrings' septa lie far from the reference's: started from the reference alone they stop
+// at 0.89; started from each subject, each object keeps the start that matched the learned appearance best, and the
+// hamstrings start from another subject's. Measured (balanced, from the CLI): reference start 0.963 / 0.951 / 0.898 /
+// 0.974, each subject 0.985 / 0.974 / 0.965 / 0.972.
+TEST(AtlasRoute, EachObjectStartsFromTheSubjectThatMatchesItBest) {
   msk::PhantomPose pose;
-  pose.rotationDegrees = Eigen::Vector3d(-10, 5, -15);
-  pose.translationMm = Eigen::Vector3d(-20, 10, -25);
-  pose.scale = 0.95;
+  pose.rotationDegrees = Eigen::Vector3d(6, -8, 12);
+  pose.translationMm = Eigen::Vector3d(10, -15, 20);
+  pose.scale = 1.05;
   msk::test::ScratchDir dir;
-  const AtlasRun run = msk::test::runAtlasCase(msk::test::phantomAtlasCase({1, 14, 15, 16}, 12, pose), dir.path());
+  const AtlasRun run = msk::test::runAtlasCase(msk::test::phantomAtlasCase({1, 14, 15, 16}, 4, pose), dir.path());
   ASSERT_EQ(run.objects.size(), 4u);
   for (const AtlasObjectScore& o : run.objects) {
     RecordProperty(o.name + "_dice", std::to_string(o.result.dice));
-    EXPECT_GE(o.result.dice, 0.92) << o.name;
+    EXPECT_GE(o.result.dice, 0.94) << o.name;
   }
   EXPECT_EQ(run.result.overlapVoxels, 0u);
   EXPECT_LE(deepestMm(run), 0.1);
+  ASSERT_EQ(run.starts.size(), 4u);
+  ASSERT_EQ(run.chosen.size(), 4u);
+  EXPECT_NE(run.chosen[2], 0u) << "the hamstrings started from the reference";
+  // The kept start is the one whose run matched best there.
+  for (size_t i = 0; i < run.chosen.size(); ++i)
+    for (const msk::AtlasStartRun& s : run.starts)
+      EXPECT_LE(s.profileMatch[i], run.starts[run.chosen[i]].profileMatch[i]) << run.objects[i].name;
 }
 
 // A subject whose muscles the whole-image registration leaves turned about the limb (phantom seed 4 posed: its septa
@@ -232,29 +305,24 @@ TEST(AtlasRoute, FailuresAreFlagged) {
   }
 }
 
-// An object whose own registration turned it far from its start and was undone at a collision partner is doubtful; a
-// small undone turn, or a far turn kept, is not.
-TEST(AtlasRoute, AnUndoneFarTurnMakesAnObjectDoubtful) {
+// An object whose own registration would have moved it beyond the limits (and was refused) is doubtful; a turn undone
+// at a collision partner, however far, or a turn kept, is not.
+TEST(AtlasRoute, ARefusedFarMoveMakesAnObjectDoubtful) {
   msk::Placement p;
-  p.objects.resize(4);
-  p.objects[3].refusedTooFar = true;  // its own registration would have moved it beyond the limits
-  p.objects[3].moveDegrees = msk::kMaxOwnTurnDegrees + 2;
+  p.objects.resize(3);
+  p.objects[2].refusedTooFar = true;  // its own registration would have moved it beyond the limits
+  p.objects[2].moveDegrees = msk::kMaxOwnTurnDegrees + 2;
   p.objects[0].keptOutOfPartner = true;
-  p.objects[0].moveDegrees = msk::kDoubtfulRefusedTurnDegrees + 3;
-  p.objects[1].keptOutOfPartner = true;
-  p.objects[1].moveDegrees = msk::kDoubtfulRefusedTurnDegrees - 3;
-  p.objects[2].registered = true;
-  p.objects[2].moveDegrees = msk::kDoubtfulRefusedTurnDegrees + 10;
+  p.objects[0].moveDegrees = msk::kMaxOwnTurnDegrees - 5;
+  p.objects[1].registered = true;
+  p.objects[1].moveDegrees = msk::kMaxOwnTurnDegrees - 2;
   msk::SegmentationResult r;
-  r.objects.resize(4);
+  r.objects.resize(3);
   msk::judgePlacement(p, r);
-  EXPECT_EQ(r.objects[3].quality.status, msk::QualityStatus::Doubtful);
-  ASSERT_EQ(r.objects[3].quality.reasons.size(), 1u);
-  EXPECT_NE(r.objects[3].quality.reasons[0].find("matches best elsewhere"), std::string::npos);
-  EXPECT_EQ(r.objects[0].quality.status, msk::QualityStatus::Doubtful);
-  ASSERT_EQ(r.objects[0].quality.reasons.size(), 1u);
-  EXPECT_NE(r.objects[0].quality.reasons[0].find("collision partner"), std::string::npos);
+  EXPECT_EQ(r.objects[2].quality.status, msk::QualityStatus::Doubtful);
+  ASSERT_EQ(r.objects[2].quality.reasons.size(), 1u);
+  EXPECT_NE(r.objects[2].quality.reasons[0].find("matches best elsewhere"), std::string::npos);
+  EXPECT_EQ(r.objects[0].quality.status, msk::QualityStatus::Ok);
   EXPECT_EQ(r.objects[1].quality.status, msk::QualityStatus::Ok);
-  EXPECT_EQ(r.objects[2].quality.status, msk::QualityStatus::Ok);
   EXPECT_EQ(r.status, msk::QualityStatus::Doubtful);
 }

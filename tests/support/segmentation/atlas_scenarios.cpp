@@ -160,15 +160,18 @@ AtlasRun runAtlasCase(const AtlasCase& c, const std::string& scratch, const Plac
   const Atlas atlas = loadAtlas(dir);
   run.buildSeconds = since(t0);
   t0 = std::chrono::steady_clock::now();
-  run.placement = placeAtlas(atlas, c.subject, placing);
-  Scene scene = placedScene(atlas, run.placement);
-  for (SceneObject& o : scene.objects)
-    if (c.refineBones && o.kind == ObjectKind::Bone) o.model.refine = true;
-  run.placementSeconds = since(t0);
-  t0 = std::chrono::steady_clock::now();
-  run.result = segmentScene(c.subject, scene, c.options);
-  judgePlacement(run.placement, run.result);
-  run.segmentSeconds = since(t0);
+  AtlasSegmentation seg = segmentWithAtlas(atlas, c.subject, placing, c.options, c.starts, {}, [&](Scene& placed) {
+    for (SceneObject& o : placed.objects)
+      if (c.refineBones && o.kind == ObjectKind::Bone) o.model.refine = true;
+  });
+  const double seconds = since(t0);
+  run.placement = std::move(seg.placement);
+  run.result = std::move(seg.result);
+  run.starts = std::move(seg.starts);
+  run.chosen = std::move(seg.chosen);
+  const Scene& scene = seg.scene;
+  run.placementSeconds = run.placement.seconds;
+  run.segmentSeconds = seconds - run.placementSeconds;
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     AtlasObjectScore s;
     s.name = scene.objects[i].name;

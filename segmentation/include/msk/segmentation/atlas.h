@@ -3,6 +3,7 @@
 /// (atlas.json, reference.nii.gz, template_<name>.vtk, scene.json); and the placement of an atlas in a new subject's
 /// image by registration (global, then per object), which turns the atlas's scene into one for that subject.
 #include <Eigen/Core>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -154,12 +155,6 @@ Placement placeAtlas(const Atlas& atlas, const ImageF& subject, const PlacementO
 /// mirrors), its profiles still learned on the reference where the template came from.
 Scene placedScene(const Atlas& atlas, const Placement& placement);
 
-/// An object whose own registration turned it more than this from its start (the global placement, or its bone's),
-/// and which was then kept at its start because the turn ran it into a collision partner, starts where its own image
-/// evidence says it does not belong: judgePlacement() makes it doubtful. Calibrated on phantom subjects of the atlas
-/// route (docs/measurements.md): the largest undone turn of a correct run is 13.4°.
-constexpr double kDoubtfulRefusedTurnDegrees = 15.0;
-
 /// An object's own registration is kept only if it moves the object less than these from its start; one that would
 /// move it further is refused, and the object is doubtful (judgePlacement()): its own neighbourhood matches the
 /// subject best somewhere else than where it starts. On the phantom subjects of docs/measurements.md, the correct runs
@@ -167,11 +162,66 @@ constexpr double kDoubtfulRefusedTurnDegrees = 15.0;
 /// global registration, each muscle in another's compartment, would turn its hamstrings by 152°.
 constexpr double kMaxOwnTurnDegrees = 30.0, kMaxOwnMoveMm = 30.0;
 
-/// Adds the placement's doubts to the objects' quality (segmenter.h) and the case's status: see
-/// kDoubtfulRefusedTurnDegrees and kMaxOwnTurnDegrees.
+/// Adds the placement's doubts to the objects' quality (segmenter.h) and the case's status: an object whose own
+/// registration was refused for moving it beyond kMaxOwnTurnDegrees / kMaxOwnMoveMm is doubtful. (An own turn undone
+/// at a collision partner is reported, not judged: on 24 phantom cases such turns of 13-24° came with Dice 0.65-0.97
+/// alike; docs/measurements.md.)
 void judgePlacement(const Placement& placement, SegmentationResult& result);
+
+/// The subjects an atlas holds: 1 for an atlas of one (format version 1, or built from one subject), else the
+/// reference and each further subject.
+size_t atlasSubjectCount(const Atlas& atlas);
+
+/// The atlas as subject `k` (0-based; 0 is the reference, the atlas itself) would have made it: that subject's image
+/// as the reference, the templates fitted onto that subject as the templates, the profiles still learned on every
+/// subject. Its world is that subject's, so `start` (an atlas → image start in the reference's world) becomes
+/// start · (reference → subject k)⁻¹, by the registration recorded in atlas.json. Throws Error for k out of range.
+Atlas atlasFromSubject(const Atlas& atlas, size_t k);
+/// The reference → subject k map of atlas.json (identity for k = 0).
+Eigen::Matrix4d atlasReferenceToSubject(const Atlas& atlas, size_t k);
+
+/// Which subjects of an atlas of several a segmentation starts from.
+enum class AtlasStarts {
+  Reference,  ///< the reference alone (one run)
+  /// Each subject's templates, placed by that subject's image, evolved with the whole scene; then each object starts a
+  /// final run from the subject whose run matched the learned appearance best there (the highest profile match). A
+  /// compartment's septa lie at other angles in other subjects, and no one subject's shape, nor their mean, starts
+  /// every muscle of every new subject near enough (docs/measurements.md). Costs one run per subject and one more.
+  Each
+};
+
+/// One start's run, with AtlasStarts::Each.
+struct AtlasStartRun {
+  size_t subject = 0;                 ///< 0-based; 0 the reference
+  Placement placement;                ///< in the subject's world (atlasFromSubject())
+  std::vector<double> profileMatch;   ///< per object, of the run's final surface (NaN without the profile force)
+  std::vector<QualityStatus> status;  ///< per object
+  double seconds = 0;                 ///< placement and segmentation
+};
+
+/// A segmentation with an atlas.
+struct AtlasSegmentation {
+  Placement placement;        ///< the final run's: the global placement the reference's, each object its start's
+  Scene scene;                ///< the placed scene the final run evolved
+  SegmentationResult result;  ///< the final run (judgePlacement() applied)
+  std::vector<AtlasStartRun> starts;  ///< each subject's run (empty with one start)
+  std::vector<size_t> chosen;         ///< per object: the subject its final run started from (0-based)
+};
+
+/// Places `atlas` in `image` and segments it: from the reference alone, or (AtlasStarts::Each, an atlas of several
+/// subjects) from each subject and then from each object's best start. `beforeRun` sees each placed scene before its
+/// run, to change it (e.g. a test's refinement flags) or refuse it by throwing (e.g. templates outside the image).
+/// Progress runs once over all runs.
+AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
+                                   const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress = {},
+                                   const std::function<void(Scene&)>& beforeRun = {});
 
 /// The placement as report.json holds it: metric, transforms (4×4 rows), registration stages, per object figures.
 Json placementJson(const Placement& placement);
+
+/// The starts of a segmentation with an atlas as report.json holds them: per subject its global registration metric,
+/// seconds and each object's profile match and status; per object the subject its final run started from (1-based,
+/// as atlas.json numbers them).
+Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene);
 
 }  // namespace msk

@@ -30,6 +30,7 @@ struct AtlasCase {
   bool refineBones = false;         ///< the bones take the refinement pass (as in the templates-in-place scene)
   /// Further subjects of the atlas (image, labels), after the reference (atlasImage, atlasLabels).
   std::vector<std::pair<ImageF, LabelMap>> moreSubjects;
+  AtlasStarts starts = AtlasStarts::Each;  ///< with moreSubjects: which subjects the segmentation starts from
 };
 
 /// Moves a grid in world space by the rigid motion or mirror `m` (orthonormal 3×3 part): the voxels stay, the affine
@@ -73,12 +74,14 @@ struct AtlasRun {
   std::vector<AtlasObjectScore> objects;
   Placement placement;
   SegmentationResult result;
+  std::vector<AtlasStartRun> starts;  ///< each subject's run (an atlas of several, AtlasStarts::Each)
+  std::vector<size_t> chosen;         ///< per object: the subject its final run started from
   double meanAssd = 0;
   double buildSeconds = 0, placementSeconds = 0, segmentSeconds = 0;
 };
 
-/// Builds the case's atlas in `scratch` (a folder that exists), places it in the subject, segments (c.options) and
-/// scores.
+/// Builds the case's atlas in `scratch` (a folder that exists), places it in the subject and segments (c.options,
+/// segmentWithAtlas() from c.starts), and scores.
 AtlasRun runAtlasCase(const AtlasCase& c, const std::string& scratch, const PlacementOptions& placing = {},
                       const AtlasOptions& atlasOptions = {});
 
