@@ -764,6 +764,9 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       run.status.push_back(o.quality.status);
     }
     run.placement = std::move(p);
+    run.secondsPerStage = r.secondsPerStage;
+    run.separationSweeps = r.separationSweeps;
+    run.separationCorrections = r.separationCorrections;
     run.seconds = since(t0);
     out.starts.push_back(std::move(run));
     scenes.push_back(std::move(scene));
@@ -861,6 +864,11 @@ Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene) {
     if (r.placement.registration) rj["global_metric"] = r.placement.registration->metric;
     rj["seconds"] = r.seconds;
     rj["placement_seconds"] = r.placement.seconds;
+    Json timing = Json::object();
+    for (const auto& [stage, sec] : r.secondsPerStage) timing[stage + "_s"] = sec;
+    rj["timing"] = timing;
+    rj["separation_sweeps_run"] = r.separationSweeps;
+    rj["separation_corrections"] = r.separationCorrections;
     Json objects = Json::object();
     for (size_t i = 0; i < r.profileMatch.size() && i < scene.objects.size(); ++i)
       objects[scene.objects[i].name] = {

@@ -4,6 +4,7 @@
 /// image by registration (global, then per object), which turns the atlas's scene into one for that subject.
 #include <Eigen/Core>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -196,7 +197,10 @@ struct AtlasStartRun {
   Placement placement;                ///< in the subject's world (atlasFromSubject())
   std::vector<double> profileMatch;   ///< per object, of the run's final surface (NaN without the profile force)
   std::vector<QualityStatus> status;  ///< per object
-  double seconds = 0;                 ///< placement and segmentation
+  std::map<std::string, double> secondsPerStage;  ///< of its segmentation (SegmentationResult::secondsPerStage)
+  int separationSweeps = 0;                       ///< of its output separation (SegmentationResult)
+  long separationCorrections = 0;
+  double seconds = 0;  ///< placement and segmentation
 };
 
 /// A segmentation with an atlas.
