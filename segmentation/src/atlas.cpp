@@ -728,7 +728,12 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
                                    const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress,
                                    const std::function<void(Scene&)>& beforeRun) {
   const size_t subjects = starts == AtlasStarts::Each ? atlasSubjectCount(atlas) : 1;
-  const size_t runs = subjects == 1 ? 1 : subjects + 1;  // the final run, unless every object keeps one start
+  const bool several = subjects > 1;
+  const size_t runs = several ? subjects + 1 : 1;  // with several starts, the final run from the kept ones
+  // The choice needs only each start's evolved surfaces (their profile match is taken before the output separation):
+  // the starts skip the separation, and the final run, whose surfaces are the ones written, does it.
+  SegmentOptions startOpts = opts;
+  if (several) startOpts.collision.separationSweeps = 0;
   auto share = [&](size_t run, const std::string& what) -> ProgressFn {
     if (!progress) return {};
     return [&progress, run, runs, what](double f, const std::string& stage) {
@@ -737,7 +742,6 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   };
   const size_t n = atlas.scene.objects.size();
   std::vector<Scene> scenes;
-  std::vector<SegmentationResult> results;
   AtlasSegmentation out;
   for (size_t k = 0; k < subjects; ++k) {
     const auto t0 = Clock::now();
@@ -755,7 +759,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     Placement p = placeAtlas(view, image, po, placingPart);
     Scene scene = placedScene(view, p);
     if (beforeRun) beforeRun(scene);
-    SegmentationResult r = segmentScene(image, scene, opts, segmentPart);
+    SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart);
     judgePlacement(p, r);
     AtlasStartRun run;
     run.subject = k;
@@ -765,12 +769,10 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     }
     run.placement = std::move(p);
     run.secondsPerStage = r.secondsPerStage;
-    run.separationSweeps = r.separationSweeps;
-    run.separationCorrections = r.separationCorrections;
     run.seconds = since(t0);
     out.starts.push_back(std::move(run));
     scenes.push_back(std::move(scene));
-    results.push_back(std::move(r));
+    if (!several) out.result = std::move(r);
   }
   out.chosen = bestStarts(out.starts, n);
   // The final placement: the reference's global placement, each object its start's own (in that subject's world).
@@ -778,12 +780,8 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   out.placement.seconds = 0;
   for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
   for (size_t i = 0; i < n; ++i) out.placement.objects[i] = out.starts[out.chosen[i]].placement.objects[i];
-  const bool one = std::all_of(out.chosen.begin(), out.chosen.end(), [&](size_t k) { return k == out.chosen[0]; });
-  if (one) {
-    const size_t k = out.chosen.empty() ? 0 : out.chosen[0];
-    out.placement.pairs = out.starts[k].placement.pairs;
-    out.scene = std::move(scenes[k]);
-    out.result = std::move(results[k]);
+  if (!several) {
+    out.scene = std::move(scenes[0]);
   } else {
     // Each object from its best start, side by side, in one run with every collision pair; the pairs measured again.
     out.scene = scenes[0];
@@ -867,8 +865,6 @@ Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene) {
     Json timing = Json::object();
     for (const auto& [stage, sec] : r.secondsPerStage) timing[stage + "_s"] = sec;
     rj["timing"] = timing;
-    rj["separation_sweeps_run"] = r.separationSweeps;
-    rj["separation_corrections"] = r.separationCorrections;
     Json objects = Json::object();
     for (size_t i = 0; i < r.profileMatch.size() && i < scene.objects.size(); ++i)
       objects[scene.objects[i].name] = {

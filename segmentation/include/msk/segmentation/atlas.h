@@ -187,7 +187,8 @@ enum class AtlasStarts {
   /// Each subject's templates, placed by that subject's image, evolved with the whole scene; then each object starts a
   /// final run from the subject whose run matched the learned appearance best there (the highest profile match). A
   /// compartment's septa lie at other angles in other subjects, and no one subject's shape, nor their mean, starts
-  /// every muscle of every new subject near enough (docs/measurements.md). Costs one run per subject and one more.
+  /// every muscle of every new subject near enough (docs/measurements.md). Costs one run per subject (without the
+  /// output separation) and one more.
   Each
 };
 
@@ -195,12 +196,10 @@ enum class AtlasStarts {
 struct AtlasStartRun {
   size_t subject = 0;                 ///< 0-based; 0 the reference
   Placement placement;                ///< in the subject's world (atlasFromSubject())
-  std::vector<double> profileMatch;   ///< per object, of the run's final surface (NaN without the profile force)
-  std::vector<QualityStatus> status;  ///< per object
+  std::vector<double> profileMatch;   ///< per object, of the run's evolved surface (NaN without the profile force)
+  std::vector<QualityStatus> status;  ///< per object (of its surface before any output separation: starts skip it)
   std::map<std::string, double> secondsPerStage;  ///< of its segmentation (SegmentationResult::secondsPerStage)
-  int separationSweeps = 0;                       ///< of its output separation (SegmentationResult)
-  long separationCorrections = 0;
-  double seconds = 0;  ///< placement and segmentation
+  double seconds = 0;                             ///< placement and segmentation
 };
 
 /// A segmentation with an atlas.
