@@ -334,8 +334,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
     qcReference = readNifti<int32_t>(outputs.qcReference);  // drawn where it lies in world space, any grid
   }
   Scene scene;
-  std::optional<Placement> placement;
-  std::optional<AtlasSegmentation> fromAtlas;
+  std::optional<AtlasSegmentation> fromAtlas;  // its scene and result are moved out; its placement stays
   SegmentationResult res;
   if (atlasOpt->count()) {
     if (!initTransform.empty()) placing.start = readLinearTransform(initTransform);
@@ -350,7 +349,6 @@ int cmdSegment(const std::vector<std::string>& argv) {
           if (const std::string problem = coverageProblem(image.grid, placed); !problem.empty())
             throw IoError(imagePath, problem);
         });
-    placement = fromAtlas->placement;
     scene = std::move(fromAtlas->scene);
     res = std::move(fromAtlas->result);
   } else {
@@ -364,9 +362,9 @@ int cmdSegment(const std::vector<std::string>& argv) {
   report["mskseg_version"] = MSK_VERSION;
   report["command"] = commandLineJson("segment", argv);
   report["image"] = fs::absolute(imagePath).string();
-  if (placement) {
+  if (fromAtlas) {
     report["atlas"] = fs::absolute(atlasDir).string();
-    report["placement"] = placementJson(*placement);
+    report["placement"] = placementJson(fromAtlas->placement);
     if (fromAtlas->starts.size() > 1) report["placement"]["starts"] = atlasStartsJson(*fromAtlas, scene);
     if (!initTransform.empty()) report["placement"]["init_transform"] = fs::absolute(initTransform).string();
   } else {
@@ -378,7 +376,7 @@ int cmdSegment(const std::vector<std::string>& argv) {
   if (!out.empty())
     writeFolderAtomically(out, [&](const std::string& dir) {
       writeOutputs(dir, res, scene, image, info, outputs, qcReference ? &*qcReference : nullptr, report);
-      if (placement) writePlacementTransform(dir, *placement);
+      if (fromAtlas) writePlacementTransform(dir, fromAtlas->placement);
     });
   if (!labelMapPath.empty())
     writeFileWithParents(labelMapPath, [&] { writeLabelMap(labelMapPath, res.labels, scene, info); });

@@ -438,13 +438,17 @@ std::map<std::pair<int, int>, size_t> parseCollisions(const Checker& check, cons
 void readTemplates(const Checker& check, Scene& scene) {
   for (size_t i = 0; i < scene.objects.size(); ++i) {
     SceneObject& obj = scene.objects[i];
-    try {
-      obj.templ = readMesh(obj.templatePath);
-    } catch (const IoError& e) {
-      check.fail(objectWhere(i, obj.name), "template " + e.file() + ": " + e.problem());
-    } catch (const Error& e) {
-      check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + e.what());
-    }
+    // A mesh of the object, its reading error naming the object and what the mesh is to it.
+    auto read = [&](const std::string& path, const std::string& what) {
+      try {
+        return readMesh(path);
+      } catch (const IoError& e) {
+        check.fail(objectWhere(i, obj.name), what + " " + e.file() + ": " + e.problem());
+      } catch (const Error& e) {
+        check.fail(objectWhere(i, obj.name), what + " " + path + ": " + e.what());
+      }
+    };
+    obj.templ = read(obj.templatePath, "template");
     const std::string problem = templateProblem(obj.templ);
     if (!problem.empty()) check.fail(objectWhere(i, obj.name), "template " + obj.templatePath + ": " + problem);
     const bool inward = enclosedVolume(obj.templ) < 0;
@@ -454,13 +458,7 @@ void readTemplates(const Checker& check, Scene& scene) {
                 "): the template is wound inward (negative enclosed volume); its faces were turned outward");
     }
     for (SceneObject::Subject& s : obj.profileSubjects) {
-      try {
-        s.surface = readMesh(s.surfacePath);
-      } catch (const IoError& e) {
-        check.fail(objectWhere(i, obj.name), "profiles_from surface " + e.file() + ": " + e.problem());
-      } catch (const Error& e) {
-        check.fail(objectWhere(i, obj.name), "profiles_from surface " + s.surfacePath + ": " + e.what());
-      }
+      s.surface = read(s.surfacePath, "profiles_from surface");
       // The template's points are carried onto the surface by vertex index: the same vertices, and no NaN.
       if (s.surface.vertexCount() != obj.templ.vertexCount() || !s.surface.vertices.allFinite())
         check.fail(objectWhere(i, obj.name),

@@ -22,6 +22,15 @@ namespace {
 using msk::test::AtlasObjectScore;
 using msk::test::AtlasRun;
 
+/// The pose "A" of the phantom subjects in docs/measurements.md: (6°, −8°, 12°), (10, −15, 20) mm, scale 1.05.
+msk::PhantomPose poseA() {
+  msk::PhantomPose pose;
+  pose.rotationDegrees = Eigen::Vector3d(6, -8, 12);
+  pose.translationMm = Eigen::Vector3d(10, -15, 20);
+  pose.scale = 1.05;
+  return pose;
+}
+
 /// The deepest vertex of either surface of a pair inside the other, mm, over the run's pairs.
 double deepestMm(const AtlasRun& run) {
   double d = 0;
@@ -123,10 +132,7 @@ TEST(AtlasRoute, ARoundLimbIsNotTurnedAboutItsAxis) {
   msk::PhantomOptions o;
   o.meshes = false;
   const msk::Phantom reference = msk::makePhantom(o);
-  msk::PhantomPose pose;
-  pose.rotationDegrees = Eigen::Vector3d(6, -8, 12);
-  pose.translationMm = Eigen::Vector3d(10, -15, 20);
-  pose.scale = 1.05;
+  const msk::PhantomPose pose = poseA();
   o.pose = pose;
   for (uint32_t seed : {9u, 11u}) {
     o.seed = seed;
@@ -166,10 +172,7 @@ TEST(AtlasRoute, PhantomSubjectInAnotherPoseAndSizeLosesNothing) {
 // hamstrings start from another subject's. Measured (balanced, from the CLI): reference start 0.963 / 0.951 / 0.898 /
 // 0.974, each subject 0.985 / 0.974 / 0.965 / 0.972.
 TEST(AtlasRoute, EachObjectStartsFromTheSubjectThatMatchesItBest) {
-  msk::PhantomPose pose;
-  pose.rotationDegrees = Eigen::Vector3d(6, -8, 12);
-  pose.translationMm = Eigen::Vector3d(10, -15, 20);
-  pose.scale = 1.05;
+  const msk::PhantomPose pose = poseA();
   msk::test::ScratchDir dir;
   const AtlasRun run = msk::test::runAtlasCase(msk::test::phantomAtlasCase({1, 14, 15, 16}, 4, pose), dir.path());
   ASSERT_EQ(run.objects.size(), 4u);
@@ -193,10 +196,7 @@ TEST(AtlasRoute, EachObjectStartsFromTheSubjectThatMatchesItBest) {
 // back, and the muscles on it start from its placement. Measured (balanced): 0.952 / 0.950 / 0.903 / 0.972; with
 // every muscle started from the global placement (`mskseg segment --atlas` at a1fb73b): 0.953 / 0.815 / 0.684 / 0.838.
 TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
-  msk::PhantomPose pose;
-  pose.rotationDegrees = Eigen::Vector3d(6, -8, 12);
-  pose.translationMm = Eigen::Vector3d(10, -15, 20);
-  pose.scale = 1.05;
+  const msk::PhantomPose pose = poseA();
   msk::test::ScratchDir dir;
   const AtlasRun run = msk::test::runAtlasCase(msk::test::phantomAtlasCase(1, 4, pose), dir.path());
   ASSERT_EQ(run.objects.size(), 4u);
