@@ -12,7 +12,7 @@ PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev
   libcgal-dev libgmp-dev libmpfr-dev libboost-dev
-  libopencv-dev
+  libopencv-dev libpng-dev libjpeg-dev   # drawing (OpenCV core, imgproc); PNG and JPEG files (libpng, libjpeg)
   libvtk9-dev
   libnifti2-dev zlib1g-dev
   libssl-dev

@@ -1,10 +1,18 @@
 #include "msk/segmentation/png_file.h"
 
+// PNG through libpng's simplified API and JPEG through libjpeg: OpenCV's imgcodecs would do both, but it links about
+// 120 more shared libraries (GDAL, codecs of every format), which every mskseg process then loads at start-up.
+#include <jpeglib.h>
+#include <png.h>
+
 #include <algorithm>
 #include <cmath>
+#include <csetjmp>
+#include <cstdio>  // before jpeglib.h, which needs FILE and size_t declared
+#include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
@@ -13,31 +21,106 @@
 
 namespace msk {
 
+namespace {
+
+/// libpng's simplified-API image for `picture` (8-bit, 1 or 3 channels, BGR order).
+png_image pngImageFor(const cv::Mat& picture) {
+  png_image img{};
+  img.version = PNG_IMAGE_VERSION;
+  img.width = static_cast<png_uint_32>(picture.cols);
+  img.height = static_cast<png_uint_32>(picture.rows);
+  img.format = picture.channels() == 1 ? PNG_FORMAT_GRAY : PNG_FORMAT_BGR;
+  return img;
+}
+
+}  // namespace
+
 void writePngAtomically(const std::string& path, const cv::Mat& picture) {
+  if (picture.empty() || picture.depth() != CV_8U || (picture.channels() != 1 && picture.channels() != 3))
+    throw IoError(path, "cannot write PNG: the picture is not 8-bit grey or BGR");
+  const cv::Mat pixels = picture.isContinuous() ? picture : picture.clone();
   writeAtomically(path, [&](const std::string& tmp) {
-    bool ok = false;
-    try {
-      ok = cv::imwrite(tmp, picture);
-    } catch (const cv::Exception& e) {
-      throw IoError(path, std::string("cannot write PNG: ") + e.what());
-    }
-    if (!ok) throw IoError(path, "cannot write PNG");
+    png_image img = pngImageFor(pixels);
+    const int ok =
+        png_image_write_to_file(&img, tmp.c_str(), 0, pixels.data, static_cast<png_int_32>(pixels.step[0]), nullptr);
+    const std::string why = img.message;
+    png_image_free(&img);
+    if (!ok) throw IoError(path, "cannot write PNG: " + why);
   });
 }
 
 cv::Mat readPicture(const std::string& path) {
-  // Checked first: OpenCV would print a warning of its own for a missing file.
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "cannot read picture: no such file");
-  cv::Mat picture;
-  try {
-    picture = cv::imread(path, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    throw IoError(path, std::string("cannot read picture: ") + e.what());
+  png_image img{};
+  img.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&img, path.c_str())) {
+    const std::string why = img.message;
+    png_image_free(&img);
+    throw IoError(path, "cannot read picture (not a PNG file: " + why + ")");
   }
-  if (picture.empty()) throw IoError(path, "cannot read picture (missing or not an image)");
+  img.format = PNG_FORMAT_BGR;
+  if (img.width == 0 || img.height == 0 || img.width > 100000 || img.height > 100000) {
+    png_image_free(&img);
+    throw IoError(path, "cannot read picture: size " + std::to_string(img.width) + " x " + std::to_string(img.height));
+  }
+  cv::Mat picture(static_cast<int>(img.height), static_cast<int>(img.width), CV_8UC3);
+  if (!png_image_finish_read(&img, nullptr, picture.data, static_cast<png_int_32>(picture.step[0]), nullptr)) {
+    const std::string why = img.message;
+    png_image_free(&img);
+    throw IoError(path, "cannot read picture: " + why);
+  }
   return picture;
 }
+
+namespace {
+
+/// libjpeg's error manager: an error longjmps back to the encoder's caller instead of exiting the process.
+struct JpegError {
+  jpeg_error_mgr mgr;
+  std::jmp_buf back;
+};
+
+[[noreturn]] void jpegFail(j_common_ptr info) { std::longjmp(reinterpret_cast<JpegError*>(info->err)->back, 1); }
+
+/// `bgr` (8-bit, 3 channels, continuous) as JPEG bytes at `quality`; empty on an encoder error.
+std::string encodeJpeg(const cv::Mat& bgr, int quality) {
+  jpeg_compress_struct c{};
+  JpegError err{};
+  c.err = jpeg_std_error(&err.mgr);
+  err.mgr.error_exit = jpegFail;
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;  // NOLINT(runtime/int): libjpeg's type
+  std::vector<unsigned char> row(static_cast<size_t>(bgr.cols) * 3);
+  if (setjmp(err.back)) {
+    jpeg_destroy_compress(&c);
+    std::free(buffer);
+    return {};
+  }
+  jpeg_create_compress(&c);
+  jpeg_mem_dest(&c, &buffer, &size);
+  c.image_width = static_cast<JDIMENSION>(bgr.cols);
+  c.image_height = static_cast<JDIMENSION>(bgr.rows);
+  c.input_components = 3;
+  c.in_color_space = JCS_RGB;
+  jpeg_set_defaults(&c);
+  jpeg_set_quality(&c, quality, TRUE);
+  jpeg_start_compress(&c, TRUE);
+  while (c.next_scanline < c.image_height) {
+    const unsigned char* src = bgr.ptr<unsigned char>(static_cast<int>(c.next_scanline));
+    for (int x = 0; x < bgr.cols; ++x)
+      for (int k = 0; k < 3; ++k) row[static_cast<size_t>(3 * x + k)] = src[3 * x + 2 - k];
+    JSAMPROW rows[1] = {row.data()};
+    jpeg_write_scanlines(&c, rows, 1);
+  }
+  jpeg_finish_compress(&c);
+  jpeg_destroy_compress(&c);
+  std::string out(reinterpret_cast<const char*>(buffer), size);
+  std::free(buffer);
+  return out;
+}
+
+}  // namespace
 
 std::string thumbnailJpeg(const std::string& path, int width) {
   const cv::Mat picture = readPicture(path);
@@ -45,10 +128,9 @@ std::string thumbnailJpeg(const std::string& path, int width) {
       std::max(1, static_cast<int>(std::lround(picture.rows * static_cast<double>(width) / picture.cols)));
   cv::Mat small;
   cv::resize(picture, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
-  std::vector<uchar> bytes;
-  if (!cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 85}))
-    throw IoError(path, "cannot encode thumbnail");
-  return std::string(bytes.begin(), bytes.end());
+  const std::string bytes = encodeJpeg(small, 85);
+  if (bytes.empty()) throw IoError(path, "cannot encode thumbnail");
+  return bytes;
 }
 
 }  // namespace msk

@@ -1,5 +1,6 @@
 #pragma once
-/// Writing a picture as a PNG file atomically (OpenCV's encoder; the caller includes <opencv2/core.hpp>).
+/// Pictures as files: PNG written atomically and read back (libpng), JPEG thumbnails (libjpeg). Pictures are OpenCV
+/// matrices (the caller includes <opencv2/core.hpp>).
 #include <string>
 
 namespace cv {
@@ -12,7 +13,7 @@ namespace msk {
 /// failure throws IoError naming `path`.
 void writePngAtomically(const std::string& path, const cv::Mat& picture);
 
-/// Reads a picture (PNG or another format OpenCV reads) as 8-bit BGR. Throws IoError naming `path` if it is missing
+/// Reads a PNG picture as 8-bit BGR. Throws IoError naming `path` if it is missing
 /// or cannot be decoded.
 cv::Mat readPicture(const std::string& path);
 
