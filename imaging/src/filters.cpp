@@ -108,31 +108,60 @@ ImageF resample(const ImageF& image, const Grid& target, float outside) {
   return out;
 }
 
-double percentile(std::vector<double> values, double p) {
-  if (!(p >= 0 && p <= 100)) throw ParameterError("percentile", std::to_string(p), "must lie in [0, 100]");
-  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); }), values.end());
+namespace {
+
+/// percentiles() over values of type T (float or double; the order statistics and so the results are the same).
+template <typename T>
+std::vector<double> selectPercentiles(std::vector<T> values, const std::vector<double>& ps) {
+  for (double p : ps)
+    if (!(p >= 0 && p <= 100)) throw ParameterError("percentile", std::to_string(p), "must lie in [0, 100]");
+  values.erase(std::remove_if(values.begin(), values.end(), [](T v) { return !std::isfinite(v); }), values.end());
   if (values.empty()) throw Error("percentile: no finite values");
-  const double rank = p / 100.0 * static_cast<double>(values.size() - 1);
-  const size_t lo = std::min(static_cast<size_t>(std::floor(rank)), values.size() - 1);
-  const double frac = rank - static_cast<double>(lo);
-  std::nth_element(values.begin(), values.begin() + lo, values.end());
-  const double vLo = values[lo];
-  if (frac <= 0 || lo + 1 >= values.size()) return vLo;
-  // After nth_element everything beyond lo is ≥ vLo, so the next order statistic is their minimum.
-  const double vHi = *std::min_element(values.begin() + lo + 1, values.end());
-  return vLo + frac * (vHi - vLo);
+  // Ranks in ascending order: after nth_element at a rank, everything beyond it is ≥ its value, so the next higher
+  // rank is selected among those alone, and the next order statistic is their minimum.
+  std::vector<size_t> order(ps.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ps[a] < ps[b]; });
+  std::vector<double> out(ps.size());
+  size_t from = 0;
+  for (size_t i : order) {
+    const double rank = ps[i] / 100.0 * static_cast<double>(values.size() - 1);
+    const size_t lo = std::min(static_cast<size_t>(std::floor(rank)), values.size() - 1);
+    const double frac = rank - static_cast<double>(lo);
+    const auto first = values.begin() + static_cast<std::ptrdiff_t>(std::min(from, lo));
+    std::nth_element(first, values.begin() + static_cast<std::ptrdiff_t>(lo), values.end());
+    from = lo;
+    const double vLo = static_cast<double>(values[lo]);
+    out[i] = vLo;
+    if (frac > 0 && lo + 1 < values.size())
+      out[i] =
+          vLo + frac * (*std::min_element(values.begin() + static_cast<std::ptrdiff_t>(lo) + 1, values.end()) - vLo);
+  }
+  return out;
 }
 
+}  // namespace
+
+std::vector<double> percentiles(std::vector<double> values, const std::vector<double>& ps) {
+  return selectPercentiles(std::move(values), ps);
+}
+
+std::vector<double> percentiles(const ImageF& image, const std::vector<double>& ps) {
+  return selectPercentiles(image.data, ps);
+}
+
+double percentile(std::vector<double> values, double p) { return percentiles(std::move(values), {p}).front(); }
+
 double percentile(const ImageF& image, double p) {
-  return percentile(std::vector<double>(image.data.begin(), image.data.end()), p);
+  return percentiles(image, {p}).front();
 }
 
 ImageF normalizeIntensity(const ImageF& image, double lowPercent, double highPercent) {
   if (!(lowPercent >= 0 && lowPercent < highPercent && highPercent <= 100))
     throw ParameterError("percentiles", std::to_string(lowPercent) + ", " + std::to_string(highPercent),
                          "need 0 ≤ low < high ≤ 100");
-  const std::vector<double> values(image.data.begin(), image.data.end());
-  const double lo = percentile(values, lowPercent), hi = percentile(values, highPercent);
+  const std::vector<double> range = percentiles(image, {lowPercent, highPercent});
+  const double lo = range[0], hi = range[1];
   if (!(hi > lo))
     throw Error("normalizeIntensity: image is constant between the " + std::to_string(lowPercent) + " and " +
                 std::to_string(highPercent) + " percentiles (value " + std::to_string(lo) + ")");

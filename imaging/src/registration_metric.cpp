@@ -35,9 +35,9 @@ Grid coarserGrid(const Grid& finer, double levelMm) {
 
 /// Maps the 1st and 99th percentiles of `image` to 0 and 1 (its minimum and maximum if those coincide).
 ImageF normalised(const ImageF& image) {
-  const std::vector<double> values(image.data.begin(), image.data.end());
-  double lo = percentile(values, 1.0), hi = percentile(values, 99.0);
-  if (!(hi > lo)) lo = percentile(values, 0.0), hi = percentile(values, 100.0);
+  const std::vector<double> range = percentiles(image, {1.0, 99.0});
+  double lo = range[0], hi = range[1];
+  if (!(hi > lo)) lo = percentile(image, 0.0), hi = percentile(image, 100.0);
   ImageF out = image;
   if (!(hi > lo)) return out;  // constant after smoothing: the caller's check on the raw image already threw
   const double scale = 1.0 / (hi - lo);

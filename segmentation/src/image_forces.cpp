@@ -500,11 +500,11 @@ ImageF normalisedForFeatures(const ImageF& image) {
   // Robust normalisation (1–99 %) so scores compare across MRI and CT. Images that are constant between those
   // percentiles (tiny objects) fall back to min–max; a constant image becomes all zeros (no edges, no forces).
   // (normalizeIntensity()'s mapping, each percentile computed once.)
-  const std::vector<double> values(image.data.begin(), image.data.end());
-  double lo = percentile(values, 1.0), hi = percentile(values, 99.0);
+  const std::vector<double> range = percentiles(image, {1.0, 99.0});
+  double lo = range[0], hi = range[1];
   if (!(hi > lo)) {
-    lo = percentile(values, 0.0);
-    hi = percentile(values, 100.0);
+    lo = percentile(image, 0.0);
+    hi = percentile(image, 100.0);
   }
   ImageF normalised = image;
   if (hi > lo) {

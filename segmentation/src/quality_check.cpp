@@ -15,12 +15,15 @@ constexpr int kSideSamples = 6;         ///< samples each side, 0.5, 1.0, ..., 3
 constexpr double kSampleStepMm = 0.5;
 constexpr double kFlat = 1e-9;  ///< a difference of normalised intensity this small counts as none
 
-double median(std::vector<double> x) {
+/// The median (the upper one of an even count) of `x`, reordering `x` in place.
+double medianInPlace(std::vector<double>& x) {
   if (x.empty()) return 0;
   const auto mid = x.begin() + static_cast<std::ptrdiff_t>(x.size() / 2);
   std::nth_element(x.begin(), mid, x.end());
   return *mid;
 }
+
+double median(std::vector<double> x) { return medianInPlace(x); }
 
 /// Median absolute deviation of `x` from `med`.
 double mad(const std::vector<double>& x, double med) {
@@ -59,7 +62,10 @@ double imageNoiseSigma(const ImageF& image) {
         const double a = image.data[g.index(i, j, k)], b = image.data[g.index(i + 1, j, k)];
         if (std::isfinite(a) && std::isfinite(b)) d.push_back(b - a);
       }
-  return kMadToSigma * mad(d, median(d)) / std::sqrt(2.0);
+  // The median, then the median absolute deviation from it, selected in place (the differences' order is not needed).
+  const double med = medianInPlace(d);
+  for (double& x : d) x = std::fabs(x - med);
+  return kMadToSigma * medianInPlace(d) / std::sqrt(2.0);
 }
 
 ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& mesh, Polarity polarity,

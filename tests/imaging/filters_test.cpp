@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "msk/core/error.h"
 
@@ -190,6 +192,39 @@ TEST(Filters, PercentileInterpolatesBetweenOrderStatistics) {
   EXPECT_NEAR(msk::percentile(std::vector<double>{4, 1, 3, 2}, 50), 2.5, 1e-12);
   EXPECT_THROW(msk::percentile(img, 101), msk::ParameterError);
   EXPECT_THROW(msk::percentile(std::vector<double>{NAN}, 50), msk::Error);
+}
+
+// Several percentiles in one selection, asked for in any order, are exactly those of sorting the finite values and
+// interpolating between neighbouring order statistics; the image's (float) values give the same.
+TEST(Filters, PercentilesInOneSelectionEqualSortedOrderStatistics) {
+  msk::Grid g;
+  g.dims = {1001, 1, 1};
+  msk::ImageF img(g);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-50.f, 150.f);
+  for (float& v : img.data) v = std::floor(u(rng) * 4.f) / 4.f;  // with ties
+  img.data[10] = NAN;
+  img.data[500] = -INFINITY;
+  std::vector<double> finite;
+  for (float v : img.data)
+    if (std::isfinite(v)) finite.push_back(v);
+  std::vector<double> sorted = finite;
+  std::sort(sorted.begin(), sorted.end());
+  const std::vector<double> ps = {99, 1, 50, 0, 100, 37.5, 1};
+  const std::vector<double> fromValues = msk::percentiles(std::vector<double>(img.data.begin(), img.data.end()), ps);
+  const std::vector<double> fromImage = msk::percentiles(img, ps);
+  ASSERT_EQ(fromValues.size(), ps.size());
+  for (size_t i = 0; i < ps.size(); ++i) {
+    const double rank = ps[i] / 100.0 * static_cast<double>(sorted.size() - 1);
+    const size_t lo = static_cast<size_t>(std::floor(rank));
+    const double expected = lo + 1 < sorted.size()
+                                ? sorted[lo] + (rank - static_cast<double>(lo)) * (sorted[lo + 1] - sorted[lo])
+                                : sorted[lo];
+    EXPECT_DOUBLE_EQ(fromValues[i], expected) << "p = " << ps[i];
+    EXPECT_EQ(fromImage[i], fromValues[i]) << "p = " << ps[i];
+    EXPECT_EQ(msk::percentile(finite, ps[i]), fromValues[i]) << "p = " << ps[i];
+  }
+  EXPECT_THROW(msk::percentiles(img, {50, 100.5}), msk::ParameterError);
 }
 
 TEST(Filters, NormalizeMapsPercentilesToZeroAndOneWithoutClipping) {
