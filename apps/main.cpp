@@ -1,5 +1,7 @@
 // mskseg: one program, many subcommands. Turns every error into one line on stderr and an exit code:
 // 0 ok, 1 failure (bad input, I/O), 2 usage error (bad command line or parameter).
+#include <malloc.h>  // mallopt (glibc)
+
 #include <cstdio>
 #include <exception>
 #include <functional>
@@ -67,6 +69,11 @@ std::string commandOfProgramName(const char* argv0) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Volumes and their working copies (megabytes each) are allocated and freed many times a run. glibc's default
+  // serves each from a fresh mmap, whose pages the kernel then faults in and zeroes on every first touch; from the
+  // heap, freed blocks are reused instead (a femur's segmentation about 15 % faster). The heap is not trimmed back.
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
   std::vector<std::string> args(argv + 1, argv + argc);
   if (const std::string command = commandOfProgramName(argv[0]); !command.empty()) args.insert(args.begin(), command);
   msk::LogLevel level = msk::LogLevel::Info;
