@@ -152,9 +152,7 @@ std::vector<double> percentiles(const ImageF& image, const std::vector<double>& 
 
 double percentile(std::vector<double> values, double p) { return percentiles(std::move(values), {p}).front(); }
 
-double percentile(const ImageF& image, double p) {
-  return percentiles(image, {p}).front();
-}
+double percentile(const ImageF& image, double p) { return percentiles(image, {p}).front(); }
 
 ImageF normalizeIntensity(const ImageF& image, double lowPercent, double highPercent) {
   if (!(lowPercent >= 0 && lowPercent < highPercent && highPercent <= 100))
