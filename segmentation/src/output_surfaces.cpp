@@ -6,6 +6,7 @@
 #include "msk/imaging/rasterize.h"
 #include "msk/segmentation/overlap_repair.h"
 #include "msk/segmentation/surface_quality.h"
+#include "parallel_each.h"
 #include "segment_stages.h"
 
 namespace msk::detail {
@@ -51,7 +52,9 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
   }
   const auto tr = Clock::now();
   std::vector<std::vector<size_t>> inside;
-  for (const ObjectResult& o : res.objects) inside.push_back(insideVoxels(o.mesh, grid));
+  inside.resize(res.objects.size());
+  parallelEach(res.objects.size(), opts.evolution.threads,
+               [&](size_t i) { inside[i] = insideVoxels(res.objects[i].mesh, grid); });
   res.secondsPerStage["rasterise"] = since(tr);
   // Voxel centres still inside both surfaces of a pair (edges crossing between the separation's samples) go to one.
   double margin = 0;
@@ -67,11 +70,13 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
     o.volumeMm3 = enclosedVolume(o.mesh);
     if (objs[i].volume) settleVolumeMesh(o, objs[i].volRestVolumes, objs[i].volSurfaceNode);  // the separated surface
   }
-  for (const SeparationPair& p : pairs) {
-    const TriangleMesh& a = *surfaces[static_cast<size_t>(p.a)];
-    const TriangleMesh& b = *surfaces[static_cast<size_t>(p.b)];
-    res.pairPenetrationMm.push_back(std::max(penetrationDepth(a, b), penetrationDepth(b, a)));
-  }
+  // Each pair's deepest penetration, the pairs on the threads (each writes its own entry).
+  res.pairPenetrationMm.assign(pairs.size(), 0.0);
+  parallelEach(pairs.size(), opts.evolution.threads, [&](size_t k) {
+    const TriangleMesh& a = *surfaces[static_cast<size_t>(pairs[k].a)];
+    const TriangleMesh& b = *surfaces[static_cast<size_t>(pairs[k].b)];
+    res.pairPenetrationMm[k] = std::max(penetrationDepth(a, b), penetrationDepth(b, a));
+  });
   res.secondsPerStage["separation"] = since(ts);
   return inside;
 }
