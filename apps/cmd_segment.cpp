@@ -241,7 +241,7 @@ SlicerModule segmentModule() {
         P("file", "--init-transform", "Initial transform").extensions(".tfm,.txt,.json"),
         P("boolean", "--no-register", "No registration").byDefault("false"),
         P("boolean", "--no-object-register", "No per-object registration").byDefault("false"),
-        P("string-enumeration", "--starts", "Starts (atlas of several subjects)")
+        P("string-enumeration", "--starts", "Starts (subjects, turned muscles)")
             .byDefault("each")
             .choices({"each", "reference"}),
         progressTagsParameter()}});
@@ -279,9 +279,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
   app.add_flag("--no-object-register", noObjectRegister,
                "with --atlas: the global registration only, no registration of each object's neighbourhood");
   app.add_option("--starts", startsName,
-                 "with an --atlas of several subjects: each (the default: a run from each subject's templates, "
-                 "then each object from the subject whose run matched the learned appearance best; one run per "
-                 "subject and one more) or reference (one run from the reference's templates)")
+                 "with --atlas: each (the default: a run from each subject's templates, and with an atlas of one "
+                 "subject also from its muscles turned by -10 and +10 degrees about the long bone they lie on; then "
+                 "each object from the start whose run matched the learned appearance best; one run per start and "
+                 "one more) or reference (one run from the reference's templates as placed)")
       ->check(CLI::IsMember({"each", "reference"}));
   CLI::Option* outOpt =
       app.add_option("--out", out,

@@ -1,6 +1,7 @@
 #include "msk/segmentation/atlas.h"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -705,17 +706,84 @@ Atlas atlasFromSubject(const Atlas& atlas, size_t k) {
 
 namespace {
 
-/// Each object's start: the subject whose run reached the highest profile match for it (the reference where no run
-/// has one, e.g. the gradient force, and on ties).
-std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs, size_t objects) {
-  std::vector<size_t> chosen(objects, 0);
-  for (size_t i = 0; i < objects; ++i) {
-    double best = -std::numeric_limits<double>::infinity();
-    for (const AtlasStartRun& r : runs) {
-      const double m = r.profileMatch[i];
-      if (std::isfinite(m) && m > best) {
-        best = m;
-        chosen[i] = r.subject;
+/// A bone template counts as long when its largest principal spread is at least this many times its second (its
+/// length at least twice its width).
+constexpr double kLongBoneVarianceRatio = 4.0;
+
+/// The one bone collision partner of object i in `scene` (scene.objects.size() if it has none or several).
+size_t oneBonePartner(const Scene& scene, size_t i) {
+  const size_t n = scene.objects.size();
+  size_t bone = n;
+  int bones = 0;
+  for (const CollisionPair& pair : scene.collisions) {
+    const size_t other = pair.a == static_cast<int>(i)   ? static_cast<size_t>(pair.b)
+                         : pair.b == static_cast<int>(i) ? static_cast<size_t>(pair.a)
+                                                         : n;
+    if (other < n && scene.objects[other].kind == ObjectKind::Bone) {
+      bone = other;
+      ++bones;
+    }
+  }
+  return bones == 1 ? bone : n;
+}
+
+/// The long axis of a bone template (unit direction) through its centroid; false if it is not long.
+bool longAxis(const TriangleMesh& bone, Eigen::Vector3d& centre, Eigen::Vector3d& axis) {
+  if (bone.vertexCount() < 4) return false;
+  centre = bone.vertices.colwise().mean().transpose();
+  const Eigen::MatrixXd d = bone.vertices.rowwise() - centre.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(d.transpose() * d);
+  const Eigen::Vector3d lambda = es.eigenvalues();  // ascending
+  if (!(lambda[2] >= kLongBoneVarianceRatio * lambda[1])) return false;
+  axis = es.eigenvectors().col(2).normalized();
+  Eigen::Index largest = 0;
+  axis.cwiseAbs().maxCoeff(&largest);
+  if (axis[largest] < 0) axis = -axis;  // one sign for every run: its largest component positive
+  return true;
+}
+
+/// The start of `runs` (allowed by `allowed`) whose run reached the highest profile match for object i, and that
+/// match; (0, −∞) if none has one.
+template <typename Allowed>
+std::pair<size_t, double> bestStartOf(const std::vector<AtlasStartRun>& runs, size_t i, Allowed&& allowed) {
+  std::pair<size_t, double> best{0, -std::numeric_limits<double>::infinity()};
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const double m = runs[r].profileMatch[i];
+    if (allowed(runs[r]) && std::isfinite(m) && m > best.second) best = {r, m};
+  }
+  return best;
+}
+
+/// Each object's start: the start whose run reached the highest profile match for it (the first start where no run
+/// has one, e.g. the gradient force, and on ties). The muscles on one long bone take turned starts of one direction
+/// only: each muscle its best start among the unturned ones and those turned one way, the way whose best matches sum
+/// higher. Neighbours turned opposite ways would start pressed into each other on one side and apart on the other.
+std::vector<size_t> bestStarts(const Atlas& atlas, const std::vector<AtlasStartRun>& runs) {
+  const Scene& scene = atlas.scene;
+  const size_t n = scene.objects.size();
+  std::vector<size_t> chosen(n, 0);
+  for (size_t i = 0; i < n; ++i) chosen[i] = bestStartOf(runs, i, [](const AtlasStartRun&) { return true; }).first;
+  std::map<size_t, std::vector<size_t>> musclesOfBone;
+  for (size_t i = 0; i < n; ++i) {
+    Eigen::Vector3d centre, axis;
+    const size_t bone = oneBonePartner(scene, i);
+    if (scene.objects[i].kind == ObjectKind::Muscle && bone < n && longAxis(scene.objects[bone].templ, centre, axis))
+      musclesOfBone[bone].push_back(i);
+  }
+  for (const auto& [bone, muscles] : musclesOfBone) {
+    double bestSum = -std::numeric_limits<double>::infinity();
+    for (const double sign : {-1.0, 1.0}) {
+      auto oneWay = [sign](const AtlasStartRun& r) { return r.twistDegrees == 0 || r.twistDegrees * sign > 0; };
+      double sum = 0;
+      std::vector<size_t> pick;
+      for (size_t i : muscles) {
+        const auto [r, m] = bestStartOf(runs, i, oneWay);
+        pick.push_back(r);
+        sum += std::isfinite(m) ? m : 0.0;
+      }
+      if (sum > bestSum) {
+        bestSum = sum;
+        for (size_t k = 0; k < muscles.size(); ++k) chosen[muscles[k]] = pick[k];
       }
     }
   }
@@ -724,12 +792,41 @@ std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs, size_t ob
 
 }  // namespace
 
+int turnedAboutBone(const Atlas& atlas, Placement& placement, double degrees) {
+  const Scene& scene = atlas.scene;
+  int turned = 0;
+  for (size_t i = 0; i < scene.objects.size() && i < placement.objects.size(); ++i) {
+    if (scene.objects[i].kind != ObjectKind::Muscle) continue;
+    const size_t bone = oneBonePartner(scene, i);
+    Eigen::Vector3d centre, axis;
+    if (bone >= scene.objects.size() || !longAxis(scene.objects[bone].templ, centre, axis)) continue;
+    ++turned;
+    if (degrees == 0) continue;
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(degrees * EIGEN_PI / 180.0, axis).toRotationMatrix();
+    Eigen::Matrix4d turn = Eigen::Matrix4d::Identity();
+    turn.topLeftCorner<3, 3>() = r;
+    turn.topRightCorner<3, 1>() = centre - r * centre;
+    placement.objects[i].transform = placement.objects[i].transform * turn;
+  }
+  return turned;
+}
+
+std::vector<double> atlasStartTwists(const Atlas& atlas, AtlasStarts starts) {
+  if (starts != AtlasStarts::Each || atlasSubjectCount(atlas) != 1) return {0.0};
+  Placement probe;
+  probe.objects.resize(atlas.scene.objects.size());
+  if (turnedAboutBone(atlas, probe, 0.0) == 0) return {0.0};
+  return {0.0, -kStartTwistDegrees, kStartTwistDegrees};
+}
+
 AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
                                    const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress,
                                    const std::function<void(Scene&)>& beforeRun) {
   const size_t subjects = starts == AtlasStarts::Each ? atlasSubjectCount(atlas) : 1;
-  const bool several = subjects > 1;
-  const size_t runs = several ? subjects + 1 : 1;  // with several starts, the final run from the kept ones
+  const std::vector<double> twists = atlasStartTwists(atlas, starts);
+  const size_t startCount = subjects * twists.size();
+  const bool several = startCount > 1;
+  const size_t runs = several ? startCount + 1 : 1;  // with several starts, the final run from the kept ones
   // The choice needs only each start's evolved surfaces (their profile match is taken before the output separation):
   // the starts skip the separation, and the final run, whose surfaces are the ones written, does it.
   SegmentOptions startOpts = opts;
@@ -750,31 +847,50 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     if (k > 0 && (placing.start || !placing.registration))
       po.start = Eigen::Matrix4d(placing.start.value_or(Eigen::Matrix4d::Identity()) *
                                  atlasReferenceToSubject(atlas, k).inverse());
-    const ProgressFn part = share(k, subjects > 1 ? "subject " + std::to_string(k + 1) + ": " : "");
-    ProgressFn placingPart, segmentPart;
-    if (part) {
-      placingPart = [&part](double f, const std::string& s) { part(0.1 * f, s); };
-      segmentPart = [&part](double f, const std::string& s) { part(0.1 + 0.9 * f, s); };
+    // One placement per subject; its turned starts differ only in their muscles' transforms.
+    Placement placed;
+    for (size_t t = 0; t < twists.size(); ++t) {
+      const size_t index = k * twists.size() + t;
+      std::string what;
+      if (subjects > 1) what += "subject " + std::to_string(k + 1);
+      if (twists.size() > 1)
+        what += (what.empty() ? "" : ", ") + ("turned " + std::to_string(std::lround(twists[t])) + "°");
+      const ProgressFn part = share(index, what.empty() ? "" : what + ": ");
+      ProgressFn placingPart, segmentPart;
+      const double placingShare = t == 0 ? 0.1 : 0.0;
+      if (part) {
+        placingPart = [&part, placingShare](double f, const std::string& s) { part(placingShare * f, s); };
+        segmentPart = [&part, placingShare](double f, const std::string& s) {
+          part(placingShare + (1 - placingShare) * f, s);
+        };
+      }
+      const auto ts = Clock::now();
+      if (t == 0) {
+        placed = placeAtlas(view, image, po, placingPart);
+      }
+      Placement p = placed;
+      if (twists[t] != 0) turnedAboutBone(view, p, twists[t]);
+      Scene scene = placedScene(view, p);
+      if (beforeRun) beforeRun(scene);
+      SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart);
+      judgePlacement(p, r);
+      AtlasStartRun run;
+      run.subject = k;
+      run.twistDegrees = twists[t];
+      for (const ObjectResult& o : r.objects) {
+        run.profileMatch.push_back(o.quality.profileMatch);
+        run.status.push_back(o.quality.status);
+      }
+      run.placement = std::move(p);
+      if (t > 0) run.placement.seconds = 0;  // placed once, with the subject's first start
+      run.secondsPerStage = r.secondsPerStage;
+      run.seconds = t == 0 ? since(t0) : since(ts);
+      out.starts.push_back(std::move(run));
+      scenes.push_back(std::move(scene));
+      if (!several) out.result = std::move(r);
     }
-    Placement p = placeAtlas(view, image, po, placingPart);
-    Scene scene = placedScene(view, p);
-    if (beforeRun) beforeRun(scene);
-    SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart);
-    judgePlacement(p, r);
-    AtlasStartRun run;
-    run.subject = k;
-    for (const ObjectResult& o : r.objects) {
-      run.profileMatch.push_back(o.quality.profileMatch);
-      run.status.push_back(o.quality.status);
-    }
-    run.placement = std::move(p);
-    run.secondsPerStage = r.secondsPerStage;
-    run.seconds = since(t0);
-    out.starts.push_back(std::move(run));
-    scenes.push_back(std::move(scene));
-    if (!several) out.result = std::move(r);
   }
-  out.chosen = bestStarts(out.starts, n);
+  out.chosen = bestStarts(atlas, out.starts);
   // The final placement: the reference's global placement, each object its start's own (in that subject's world).
   out.placement = out.starts[0].placement;
   out.placement.seconds = 0;
@@ -854,11 +970,15 @@ Json placementJson(const Placement& placement) {
 
 Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene) {
   Json j;
-  j["subjects"] = seg.starts.size();
+  size_t subjects = 0;
+  for (const AtlasStartRun& r : seg.starts) subjects = std::max(subjects, r.subject + 1);
+  j["subjects"] = subjects;
+  j["starts"] = seg.starts.size();
   Json runs = Json::array();
   for (const AtlasStartRun& r : seg.starts) {
     Json rj;
     rj["subject"] = r.subject + 1;
+    rj["twist_degrees"] = r.twistDegrees;
     if (r.placement.registration) rj["global_metric"] = r.placement.registration->metric;
     rj["seconds"] = r.seconds;
     rj["placement_seconds"] = r.placement.seconds;

@@ -181,20 +181,36 @@ Atlas atlasFromSubject(const Atlas& atlas, size_t k);
 /// The reference → subject k map of atlas.json (identity for k = 0).
 Eigen::Matrix4d atlasReferenceToSubject(const Atlas& atlas, size_t k);
 
-/// Which subjects of an atlas of several a segmentation starts from.
+/// Which starts a segmentation with an atlas runs from.
 enum class AtlasStarts {
-  Reference,  ///< the reference alone (one run)
-  /// Each subject's templates, placed by that subject's image, evolved with the whole scene; then each object starts a
-  /// final run from the subject whose run matched the learned appearance best there (the highest profile match). A
-  /// compartment's septa lie at other angles in other subjects, and no one subject's shape, nor their mean, starts
-  /// every muscle of every new subject near enough (docs/measurements.md). Costs one run per subject (without the
-  /// output separation) and one more.
+  Reference,  ///< the reference alone, as placed (one run)
+  /// Each subject's templates, placed by that subject's image, evolved with the whole scene; an atlas of one subject
+  /// also starts with its muscles turned by ±kStartTwistDegrees about the long bone they lie on (atlasStartTwists()).
+  /// Then each object starts a final run from the start whose run matched the learned appearance best there (the
+  /// highest profile match). A compartment's septa lie at other angles in other subjects, and no one subject's shape,
+  /// nor their mean, starts every muscle of every new subject near enough (docs/measurements.md). Costs one run per
+  /// start (without the output separation) and one more.
   Each
 };
+
+/// The turn (degrees) of the turned starts of an atlas of one subject.
+constexpr double kStartTwistDegrees = 10.0;
+
+/// The turns (degrees) each subject of `atlas` starts from under `starts`: {0} but for AtlasStarts::Each with an atlas
+/// of one subject that has a muscle on a long bone (turnedAboutBone()): {0, −kStartTwistDegrees, +kStartTwistDegrees}.
+std::vector<double> atlasStartTwists(const Atlas& atlas, AtlasStarts starts);
+
+/// Turns each muscle that lies on exactly one long bone (its one bone collision partner, whose template is at least
+/// twice as long as it is wide) by `degrees` about that bone's long axis (the principal axis of its template, through
+/// its centroid, in atlas space, directed so that its largest component is positive; right-handed), after the
+/// muscle's placement: the muscles on a limb's bone keep their places
+/// relative to one another and turn together. Returns the number of muscles turned.
+int turnedAboutBone(const Atlas& atlas, Placement& placement, double degrees);
 
 /// One start's run, with AtlasStarts::Each.
 struct AtlasStartRun {
   size_t subject = 0;                 ///< 0-based; 0 the reference
+  double twistDegrees = 0;            ///< its muscles' turn about their bone (turnedAboutBone())
   Placement placement;                ///< in the subject's world (atlasFromSubject())
   std::vector<double> profileMatch;   ///< per object, of the run's evolved surface (NaN without the profile force)
   std::vector<QualityStatus> status;  ///< per object (of its surface before any output separation: starts skip it)
@@ -207,13 +223,13 @@ struct AtlasSegmentation {
   Placement placement;        ///< the final run's: the global placement the reference's, each object its start's
   Scene scene;                ///< the placed scene the final run evolved
   SegmentationResult result;  ///< the final run (judgePlacement() applied)
-  std::vector<AtlasStartRun> starts;  ///< each subject's run (empty with one start)
-  std::vector<size_t> chosen;         ///< per object: the subject its final run started from (0-based)
+  std::vector<AtlasStartRun> starts;  ///< each start's run (empty with one start)
+  std::vector<size_t> chosen;         ///< per object: the start (index into `starts`) its final run started from
 };
 
-/// Places `atlas` in `image` and segments it: from the reference alone, or (AtlasStarts::Each, an atlas of several
-/// subjects) from each subject and then from each object's best start. `beforeRun` sees each placed scene before its
-/// run, to change it (e.g. a test's refinement flags) or refuse it by throwing (e.g. templates outside the image).
+/// Places `atlas` in `image` and segments it: from the reference alone, or (AtlasStarts::Each) from each start of
+/// atlasStartTwists() of each subject and then from each object's best start. `beforeRun` sees each placed scene before
+/// its run, to change it (e.g. a test's refinement flags) or refuse it by throwing (e.g. templates outside the image).
 /// Progress runs once over all runs.
 AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
                                    const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress = {},
@@ -222,9 +238,9 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
 /// The placement as report.json holds it: metric, transforms (4×4 rows), registration stages, per object figures.
 Json placementJson(const Placement& placement);
 
-/// The starts of a segmentation with an atlas as report.json holds them: per subject its global registration metric,
-/// seconds and each object's profile match and status; per object the subject its final run started from (1-based,
-/// as atlas.json numbers them).
+/// The starts of a segmentation with an atlas as report.json holds them: per start its subject (1-based, as atlas.json
+/// numbers them), turn, global registration metric, seconds and each object's profile match and status; per object
+/// the start its final run started from (1-based, the order of "runs").
 Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene);
 
 }  // namespace msk
