@@ -907,7 +907,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
                                                          out.scene.objects[static_cast<size_t>(cp.b)].templ);
     }
-    out.result = segmentScene(image, out.scene, opts, share(subjects, "from the best starts: "));
+    out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "));
     judgePlacement(out.placement, out.result);
   }
   if (progress) progress(1.0, "done");

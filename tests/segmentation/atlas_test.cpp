@@ -254,6 +254,10 @@ TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   ASSERT_EQ(run.starts.size(), 3u);
   ASSERT_EQ(run.chosen.size(), 4u);
   EXPECT_NE(run.starts[run.chosen[2]].twistDegrees, 0.0) << "the hamstrings kept the unturned start";
+  // Progress runs once over the four runs (three starts and the final one), never back.
+  ASSERT_FALSE(run.progress.empty());
+  EXPECT_TRUE(std::is_sorted(run.progress.begin(), run.progress.end()));
+  EXPECT_DOUBLE_EQ(run.progress.back(), 1.0);
   // The muscles' kept starts are turned one way only.
   double way = 0;
   for (size_t i = 1; i < run.chosen.size(); ++i) {

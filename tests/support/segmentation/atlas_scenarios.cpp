@@ -160,10 +160,12 @@ AtlasRun runAtlasCase(const AtlasCase& c, const std::string& scratch, const Plac
   const Atlas atlas = loadAtlas(dir);
   run.buildSeconds = since(t0);
   t0 = std::chrono::steady_clock::now();
-  AtlasSegmentation seg = segmentWithAtlas(atlas, c.subject, placing, c.options, c.starts, {}, [&](Scene& placed) {
-    for (SceneObject& o : placed.objects)
-      if (c.refineBones && o.kind == ObjectKind::Bone) o.model.refine = true;
-  });
+  const ProgressFn progress = [&run](double f, const std::string&) { run.progress.push_back(f); };
+  AtlasSegmentation seg =
+      segmentWithAtlas(atlas, c.subject, placing, c.options, c.starts, progress, [&](Scene& placed) {
+        for (SceneObject& o : placed.objects)
+          if (c.refineBones && o.kind == ObjectKind::Bone) o.model.refine = true;
+      });
   const double seconds = since(t0);
   run.placement = std::move(seg.placement);
   run.result = std::move(seg.result);

@@ -74,8 +74,9 @@ struct AtlasRun {
   std::vector<AtlasObjectScore> objects;
   Placement placement;
   SegmentationResult result;
-  std::vector<AtlasStartRun> starts;  ///< each subject's run (an atlas of several, AtlasStarts::Each)
-  std::vector<size_t> chosen;         ///< per object: the subject its final run started from
+  std::vector<AtlasStartRun> starts;  ///< each start's run (AtlasStarts::Each with several starts)
+  std::vector<size_t> chosen;         ///< per object: the start (index into `starts`) its final run started from
+  std::vector<double> progress;       ///< every fraction segmentWithAtlas() reported, in order
   double meanAssd = 0;
   double buildSeconds = 0, placementSeconds = 0, segmentSeconds = 0;
 };
