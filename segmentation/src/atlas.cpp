@@ -742,6 +742,25 @@ bool longAxis(const TriangleMesh& bone, Eigen::Vector3d& centre, Eigen::Vector3d
   return true;
 }
 
+/// A muscle whose one bone collision partner is long, with that bone's long axis (turnedAboutBone()).
+struct MuscleOnBone {
+  size_t muscle = 0, bone = 0;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero(), axis = Eigen::Vector3d::UnitZ();
+};
+
+/// The muscles of `scene` that lie on one long bone, in object order.
+std::vector<MuscleOnBone> musclesOnLongBones(const Scene& scene) {
+  std::vector<MuscleOnBone> out;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    if (scene.objects[i].kind != ObjectKind::Muscle) continue;
+    MuscleOnBone m;
+    m.muscle = i;
+    m.bone = oneBonePartner(scene, i);
+    if (m.bone < scene.objects.size() && longAxis(scene.objects[m.bone].templ, m.centre, m.axis)) out.push_back(m);
+  }
+  return out;
+}
+
 /// The start of `runs` (allowed by `allowed`) whose run reached the highest profile match for object i, and that
 /// match; (0, −∞) if none has one.
 template <typename Allowed>
@@ -764,12 +783,7 @@ std::vector<size_t> bestStarts(const Atlas& atlas, const std::vector<AtlasStartR
   std::vector<size_t> chosen(n, 0);
   for (size_t i = 0; i < n; ++i) chosen[i] = bestStartOf(runs, i, [](const AtlasStartRun&) { return true; }).first;
   std::map<size_t, std::vector<size_t>> musclesOfBone;
-  for (size_t i = 0; i < n; ++i) {
-    Eigen::Vector3d centre, axis;
-    const size_t bone = oneBonePartner(scene, i);
-    if (scene.objects[i].kind == ObjectKind::Muscle && bone < n && longAxis(scene.objects[bone].templ, centre, axis))
-      musclesOfBone[bone].push_back(i);
-  }
+  for (const MuscleOnBone& m : musclesOnLongBones(scene)) musclesOfBone[m.bone].push_back(m.muscle);
   for (const auto& [bone, muscles] : musclesOfBone) {
     double bestSum = -std::numeric_limits<double>::infinity();
     for (const double sign : {-1.0, 1.0}) {
@@ -793,29 +807,23 @@ std::vector<size_t> bestStarts(const Atlas& atlas, const std::vector<AtlasStartR
 }  // namespace
 
 int turnedAboutBone(const Atlas& atlas, Placement& placement, double degrees) {
-  const Scene& scene = atlas.scene;
   int turned = 0;
-  for (size_t i = 0; i < scene.objects.size() && i < placement.objects.size(); ++i) {
-    if (scene.objects[i].kind != ObjectKind::Muscle) continue;
-    const size_t bone = oneBonePartner(scene, i);
-    Eigen::Vector3d centre, axis;
-    if (bone >= scene.objects.size() || !longAxis(scene.objects[bone].templ, centre, axis)) continue;
+  for (const MuscleOnBone& m : musclesOnLongBones(atlas.scene)) {
+    if (m.muscle >= placement.objects.size()) continue;
     ++turned;
     if (degrees == 0) continue;
-    const Eigen::Matrix3d r = Eigen::AngleAxisd(degrees * EIGEN_PI / 180.0, axis).toRotationMatrix();
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(degrees * EIGEN_PI / 180.0, m.axis).toRotationMatrix();
     Eigen::Matrix4d turn = Eigen::Matrix4d::Identity();
     turn.topLeftCorner<3, 3>() = r;
-    turn.topRightCorner<3, 1>() = centre - r * centre;
-    placement.objects[i].transform = placement.objects[i].transform * turn;
+    turn.topRightCorner<3, 1>() = m.centre - r * m.centre;
+    placement.objects[m.muscle].transform = placement.objects[m.muscle].transform * turn;
   }
   return turned;
 }
 
 std::vector<double> atlasStartTwists(const Atlas& atlas, AtlasStarts starts) {
-  if (starts != AtlasStarts::Each || atlasSubjectCount(atlas) != 1) return {0.0};
-  Placement probe;
-  probe.objects.resize(atlas.scene.objects.size());
-  if (turnedAboutBone(atlas, probe, 0.0) == 0) return {0.0};
+  if (starts != AtlasStarts::Each || atlasSubjectCount(atlas) != 1 || musclesOnLongBones(atlas.scene).empty())
+    return {0.0};
   return {0.0, -kStartTwistDegrees, kStartTwistDegrees};
 }
 
@@ -865,9 +873,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
         };
       }
       const auto ts = Clock::now();
-      if (t == 0) {
-        placed = placeAtlas(view, image, po, placingPart);
-      }
+      if (t == 0) placed = placeAtlas(view, image, po, placingPart);
       Placement p = placed;
       if (twists[t] != 0) turnedAboutBone(view, p, twists[t]);
       Scene scene = placedScene(view, p);
