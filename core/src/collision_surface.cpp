@@ -128,13 +128,9 @@ Eigen::Vector3d CollisionSurface::pseudonormal(const Points& p, const SurfacePoi
 
 const WindingNumber& CollisionSurface::winding(const Points& p) const {
   std::lock_guard<std::mutex> lock(windingMutex_);
-  // Built at the current positions (no stale far field), so clusters can be small. A query's cost is the groups'
-  // dipoles (their number falls as the cluster size squared) plus the triangles summed one by one near it (growing
-  // as that size squared over the triangle's area); the two balance at a size growing as the edge times the fourth
-  // root of the triangle count. Clusters of one edge at about 6000 triangles (a template of 3000 vertices: the side
-  // tests of a step about 30 % faster on the 24-structure scene than with the default two edges), larger on finer
-  // surfaces.
-  const double clusterEdges = std::max(1.0, std::pow(static_cast<double>(tri_.rows()) / 6000.0, 0.25));
+  // Built at the current positions (no stale far field), so clusters can be small: leaves of about one edge (1–1.5
+  // edges are fastest on icospheres of 5 k to 82 k triangles, kernels_bench BM_WindingNumberNearSurface).
+  const double clusterEdges = 1.0;
   if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_, clusterEdges * meanEdge_);
   return *winding_;
 }

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <random>
 
 #include "msk/core/error.h"
@@ -99,4 +100,44 @@ TEST(WindingNumber, LivePositionsFollowTheMovedSurface) {
   const msk::WindingNumber wn2(original, shifted.faces);
   EXPECT_NEAR(wn2.at(q, stacked), wn.at(q, moved), 1e-12);
   EXPECT_THROW(wn2.at(q, moved), msk::Error);  // fewer rows than the array it was built on
+}
+
+// On a surface of 20 000 triangles with leaves of one edge (as collision surfaces build it), points half an edge in
+// and out along the normal get the exact sum's answer, and the tree's value stays within 0.05 of it.
+TEST(WindingNumber, TreeMatchesExactNearALargeSurface) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(50, 5, {4, -7, 2});
+  double edge = 0;
+  for (int f = 0; f < sphere.faceCount(); ++f)
+    edge += (sphere.vertices.row(sphere.faces(f, 0)) - sphere.vertices.row(sphere.faces(f, 1))).norm();
+  edge /= sphere.faceCount();
+  const msk::WindingNumber wn(sphere.vertices, sphere.faces, edge);
+  const Eigen::Vector3d centre(4, -7, 2);
+  double worst = 0;
+  for (int v = 0; v < sphere.vertexCount(); v += 37) {
+    const Eigen::Vector3d x = sphere.vertices.row(v).transpose(), n = (x - centre).normalized();
+    for (double off : {-0.5 * edge, 0.5 * edge}) {
+      const Eigen::Vector3d q = x + off * n;
+      const double approx = wn.at(q), exact = wn.exactAt(q);
+      EXPECT_NEAR(exact, off < 0 ? 1.0 : 0.0, 1e-9);
+      EXPECT_EQ(approx > 0.5, off < 0) << "vertex " << v << " offset " << off;
+      worst = std::max(worst, std::abs(approx - exact));
+    }
+  }
+  EXPECT_LT(worst, 0.05);
+}
+
+// A point a hair's breadth from a face sees that face as almost half of its view (a solid angle near ±2π): the near
+// triangles' angles, summed as one product, still give 1 just inside and 0 just outside.
+TEST(WindingNumber, PointsAHairFromAFace) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(10, 3);
+  const msk::WindingNumber wn(sphere.vertices, sphere.faces);
+  for (int f = 0; f < sphere.faceCount(); f += 13) {
+    const Eigen::Vector3d a = sphere.vertices.row(sphere.faces(f, 0)), b = sphere.vertices.row(sphere.faces(f, 1)),
+                          c = sphere.vertices.row(sphere.faces(f, 2));
+    const Eigen::Vector3d centroid = (a + b + c) / 3.0, n = (b - a).cross(c - a).normalized();
+    for (double off : {1e-9, 1e-6, 1e-3}) {
+      EXPECT_NEAR(wn.at(centroid - off * n), 1.0, 0.05) << "face " << f << " inside by " << off;
+      EXPECT_NEAR(wn.at(centroid + off * n), 0.0, 0.05) << "face " << f << " outside by " << off;
+    }
+  }
 }

@@ -14,9 +14,9 @@ double triangleWindingNumber(const Eigen::Vector3d& q, const Eigen::Vector3d& a,
                              const Eigen::Vector3d& c);
 
 /// Winding number of a closed, outward-oriented triangle surface: ≈ 1 inside, ≈ 0 outside (2 where it covers a point
-/// twice). Triangles are grouped in cubic clusters on two levels (groups of clusters four times larger); a group or
-/// cluster seen from farther than `farFactor` times its radius contributes its dipole Σ aᵢnᵢ·(c − q)/(4π|c − q|³),
-/// nearer clusters triangle by triangle (exact).
+/// twice). Triangles are grouped in a tree of cubic cells, each level's cells twice the size of the one below (an
+/// octree); a node seen from farther than `farFactor` times its radius contributes its dipole Σ aᵢnᵢ·(c − q)/(4π|c −
+/// q|³), a nearer one its children, and the nearest leaves their triangles one by one (exact).
 class WindingNumber {
  public:
   /// `clusterMm` ≤ 0: twice the mean edge length. farFactor ≥ 1 (2 keeps the error far below the ½ threshold
@@ -37,13 +37,17 @@ class WindingNumber {
   double exactAt(const Eigen::Vector3d& q) const;
 
  private:
-  struct Cluster {
+  /// A node of the cluster tree: a leaf holds the triangles order_[begin, end), an inner node the nodes
+  /// nodes_[begin, end) of the level below (cells half as large).
+  struct Node {
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< area-weighted centroid of its triangles
     Eigen::Vector3d dipole = Eigen::Vector3d::Zero();  ///< Σ area · unit normal
     double radius = 0;                                 ///< largest distance from the centre to a corner
-    int begin = 0, end = 0;                            ///< its triangles: order_[begin, end)
+    double area = 0;                                   ///< Σ area
+    int begin = 0, end = 0;
+    bool leaf = false;
   };
-  /// Sum over the groups and clusters at q; `corner(t, k)` gives corner k of triangle t.
+  /// Sum over the tree at q; `corner(t, k)` gives corner k of triangle t.
   template <class Corner>
   double sum(const Eigen::Vector3d& q, const Corner& corner) const;
   Points v_;
@@ -51,8 +55,8 @@ class WindingNumber {
   Triangles given_;    ///< the faces as given (indices into the caller's vertex array)
   int givenRows_ = 0;  ///< rows of the vertex array given to the constructor
   double far_;
-  std::vector<Cluster> clusters_;  ///< fine clusters, grouped: group g owns clusters_[groups_[g].begin, end)
-  std::vector<Cluster> groups_;    ///< coarse groups of clusters (begin/end index clusters_)
+  std::vector<Node> nodes_;  ///< leaves first, then each coarser level's nodes
+  std::vector<int> roots_;   ///< the coarsest level's nodes
   std::vector<int> order_;
 };
 
