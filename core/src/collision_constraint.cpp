@@ -59,7 +59,8 @@ CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::sha
       friction_(friction),
       response_(response),
       dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()),
-      hint_(static_cast<size_t>(std::max(vertexCount, 0)), -1) {
+      hint_(static_cast<size_t>(std::max(vertexCount, 0)), -1),
+      clear_(static_cast<size_t>(std::max(vertexCount, 0))) {
   checkContactParameters(gapMm, proximityMm, friction);
   MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
   first_ = firstA;
@@ -84,6 +85,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads)
   if (surface_->triangles().rows() == 0 || count_ == 0) return;
   if (ownsSurface_) surface_->update(p);
   const double reach = gap_ + proximity_;
+  const double travelled = surface_->travelled();
   const bool reference = response_.target == CollisionTarget::Reference;
   // The vertices in contiguous ranges, one per thread: each vertex's query reads the positions and B's grid and writes
   // only its own slots, and the ranges' contacts are joined in vertex order, so the result is the same for any count.
@@ -93,8 +95,18 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads)
       const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
       // The triangle found last time starts the search: between detections a vertex moves a fraction of a triangle.
       int& hint = hint_[static_cast<size_t>(v)];
-      const SurfacePoint s = surface_->closest(p, q, reach, hint);
+      Clearance& clear = clear_[static_cast<size_t>(v)];
+      if (clear.distance > 0 &&
+          clear.distance - (q - clear.at).norm() - (travelled - clear.travelled) > reach * (1 + 1e-9) + 1e-9) {
+        hint = -1;  // what the query would find
+        continue;
+      }
+      double clearance = 0;
+      const SurfacePoint s = surface_->closest(p, q, reach, hint, &clearance);
       hint = s.triangle;
+      clear.distance = s.triangle < 0 ? clearance : 0.0;
+      clear.at = q;
+      clear.travelled = travelled;
       if (s.triangle < 0) continue;
       Contact c{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
       // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is

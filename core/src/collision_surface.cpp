@@ -53,7 +53,10 @@ void CollisionSurface::update(const Points& p) {
   const Eigen::Index rows = idxHi_ - idxLo_ + 1;
   if (p.rows() > idxHi_ && built_.rows() == rows && built_ == p.middleRows(idxLo_, rows)) return;
   winding_.reset();
-  if (p.rows() > idxHi_) built_ = p.middleRows(idxLo_, rows);
+  if (p.rows() > idxHi_) {
+    if (built_.rows() == rows) travelled_ += (p.middleRows(idxLo_, rows) - built_).rowwise().norm().maxCoeff();
+    built_ = p.middleRows(idxLo_, rows);
+  }
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   double extent = 0;
   for (int t = 0; t < nt; ++t) {
@@ -75,9 +78,11 @@ void CollisionSurface::update(const Points& p) {
   grid_.build(layout, p, tri_);
 }
 
-SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint) const {
+SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint,
+                                       double* clearance) const {
+  if (clearance) *clearance = 0;
   if (grid_.empty() || (q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) return {};
-  return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_), hint);
+  return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_), hint, clearance);
 }
 
 Eigen::Vector3d CollisionSurface::faceNormal(const Points& p, int t) const {

@@ -69,7 +69,7 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
 }
 
 SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q, double radius,
-                                         int hint) const {
+                                         int hint, double* clearance) const {
   SurfacePoint best;
   best.distance = radius;
   // Only the cells the ball of `radius` around q touches (at most 2 per axis, as cells are at least `radius` wide),
@@ -108,6 +108,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     from[a] = std::max(clampedCell(u[a] - padCells, a), c[a] - 1);
     to[a] = std::min(clampedCell(u[a] + padCells, a), c[a] + 1);
   }
+  double nearestSq = std::numeric_limits<double>::infinity();  // of the triangles examined and passed over
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {
@@ -127,13 +128,19 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
             const double out = std::max(std::max(item.lo[a] - q[a], q[a] - item.hi[a]), 0.0);
             boxSq += out * out;
           }
-          if (boxSq > best.distance * best.distance * (1 + 1e-12)) continue;
+          if (boxSq > best.distance * best.distance * (1 + 1e-12)) {
+            nearestSq = std::min(nearestSq, boxSq);
+            continue;
+          }
           const int t = item.triangle;
           Eigen::Vector3d bc;
           const Eigen::Vector3d cp = closestPointOnTriangle(
               q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(), p.row(tri(t, 2)).transpose(), &bc);
           const double d = (cp - q).norm();
-          if (!(d <= best.distance)) continue;
+          if (!(d <= best.distance)) {
+            nearestSq = std::min(nearestSq, d * d);
+            continue;
+          }
           const size_t key = keyOf(item.cell, t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
           best.distance = d;
@@ -143,6 +150,16 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
           for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
         }
       }
+  if (clearance && best.triangle < 0) {
+    // A triangle listed in none of the scanned cells has its box outside the block of them (a border cell reaches to
+    // infinity outward); every listed one was examined, its box or its closest point at nearestSq or farther.
+    double bound = std::sqrt(nearestSq);
+    for (int a = 0; a < 3; ++a) {
+      if (from[a] > 0) bound = std::min(bound, q[a] - (layout_.lo[a] + from[a] * layout_.cell));
+      if (to[a] < layout_.dims[a] - 1) bound = std::min(bound, layout_.lo[a] + (to[a] + 1) * layout_.cell - q[a]);
+    }
+    *clearance = std::max(bound, 0.0);
+  }
   return best;
 }
 

@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <random>
 
 #include "msk/core/error.h"
+#include "msk/core/simplex_mesh.h"
+#include "msk/core/triangle_grid.h"
 #include "msk/core/triangle_mesh.h"
 #include "msk/test/shapes.h"
 
@@ -95,4 +98,79 @@ TEST(CollisionConstraints, InsideTestDecidesTheSideAndTheOutsideAssumptionNeverP
       }
     }
   }
+}
+
+// When nothing lies within the radius, the clearance a grid query reports is a distance that no triangle is nearer
+// than (the exact distances, by brute force), and at least the radius.
+TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
+  msk::TriangleMesh m = msk::makeIcosphere(10, 3, {2, 1, -3});
+  std::mt19937 rng(5);
+  for (int v = 0; v < m.vertexCount(); ++v) m.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  const double radius = 1.2;
+  msk::TriangleGrid grid;
+  msk::TriangleGrid::Layout layout;
+  layout.lo = (m.vertices.colwise().minCoeff().array() - radius).transpose();
+  layout.cell = 1.7;
+  layout.dims =
+      ((m.vertices.colwise().maxCoeff().transpose() - layout.lo).array() / layout.cell + radius).ceil().cast<int>();
+  grid.build(layout, m.vertices, m.faces);
+  std::uniform_real_distribution<double> u(-14, 14);
+  int empty = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const Eigen::Vector3d q = Eigen::Vector3d(2, 1, -3) + Eigen::Vector3d(u(rng), u(rng), u(rng));
+    double clearance = -1;
+    const msk::SurfacePoint s = grid.closestWithin(m.vertices, m.faces, q, radius, -1, &clearance);
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int t = 0; t < m.faceCount(); ++t)
+      nearest = std::min(nearest, (msk::closestPointOnTriangle(q, m.vertices.row(m.faces(t, 0)).transpose(),
+                                                               m.vertices.row(m.faces(t, 1)).transpose(),
+                                                               m.vertices.row(m.faces(t, 2)).transpose()) -
+                                   q)
+                                      .norm());
+    if (s.triangle >= 0) {
+      EXPECT_NEAR(s.distance, nearest, 1e-12);
+      continue;
+    }
+    ++empty;
+    EXPECT_GT(nearest, radius);
+    EXPECT_GE(clearance, radius);
+    EXPECT_LE(clearance, nearest * (1 + 1e-12)) << "query " << q.transpose();
+  }
+  EXPECT_GT(empty, 1000);
+}
+
+// A set that skips the queries of vertices known to be out of reach (their clearance, less their own move and the
+// partner's travel since, beyond the reach) finds at every step exactly the contacts of a set built afresh.
+TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
+  const msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {21.5, 0, 0});
+  const int na = a.vertexCount(), nb = b.vertexCount();
+  msk::Points p(na + nb, 3);
+  p.topRows(na) = a.vertices;
+  p.bottomRows(nb) = b.vertices;
+  const msk::Triangles tb = b.faces.array() + na;
+  msk::CollisionConstraints kept(0, na, tb, 0.2, 1.0, 0.0);
+  std::mt19937 rng(9);
+  int compared = 0;
+  for (int step = 0; step < 60; ++step) {
+    // B comes toward A and goes back, both surfaces jitter; some steps leave B where it was.
+    if (step % 7 != 3) {
+      const double dx = step < 30 ? -0.12 : 0.12;
+      for (int v = na; v < na + nb; ++v)
+        p.row(v) += Eigen::RowVector3d(dx, 0, 0) + 0.05 * uniformVector(rng).transpose();
+    }
+    for (int v = 0; v < na; ++v) p.row(v) += 0.08 * uniformVector(rng).transpose();
+    kept.detect(p, step % 5 == 0);
+    msk::CollisionConstraints fresh(0, na, tb, 0.2, 1.0, 0.0);
+    fresh.detect(p, step % 5 == 0);
+    ASSERT_EQ(kept.contacts(), fresh.contacts()) << "step " << step;
+    ASSERT_EQ(kept.rowCount(), fresh.rowCount());
+    for (int r = 0; r < kept.rowCount(); ++r) {
+      int ik[msk::kMaxRowParticles], jf[msk::kMaxRowParticles];
+      ASSERT_EQ(kept.rowParticles(r, ik), fresh.rowParticles(r, jf));
+      for (int k = 0; k < 4; ++k) EXPECT_EQ(ik[k], jf[k]) << "step " << step << " row " << r;
+    }
+    EXPECT_EQ(kept.maxPenetration(p), fresh.maxPenetration(p));
+    compared += kept.contacts();
+  }
+  EXPECT_GT(compared, 500);
 }

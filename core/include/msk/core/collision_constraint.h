@@ -109,6 +109,15 @@ class CollisionConstraints : public ConstraintSet {
   std::vector<Contact> contacts_;
   std::vector<double> dref_;  ///< per vertex of A: recorded reference distance (NaN = none)
   std::vector<int> hint_;     ///< per vertex of A: the partner triangle its last query found (−1 = none)
+  /// Per vertex of A, from its last scan of B's grid that found nothing: the distance no triangle of B was nearer
+  /// than (0 = none known), where the vertex was, and B's travelled() then. While the distance, less the vertex's
+  /// move and B's travel since, stays beyond the reach, nothing can be found and the query is skipped.
+  struct Clearance {
+    double distance = 0;
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    double travelled = 0;
+  };
+  std::vector<Clearance> clear_;
 };
 
 /// Global collision resolution (DESIGN-NOTES §5): the contacts of every member set (all built with

@@ -23,8 +23,13 @@ class CollisionSurface {
   /// winding number, if the surface's particles have not moved since the last update().
   void update(const Points& p);
   /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update();
-  /// `hint` a triangle likely to be it (TriangleGrid::closestWithin(), the same answer with or without).
-  SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint = -1) const;
+  /// `hint` a triangle likely to be it (TriangleGrid::closestWithin(), the same answer with or without); `clearance`
+  /// (optional): when nothing is found by a scan of the grid, a distance no triangle is nearer than, else 0.
+  SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint = -1,
+                       double* clearance = nullptr) const;
+  /// The sum over the updates of the largest move of any of the surface's particles since the one before: the
+  /// difference of two readings bounds how far any point of the surface has moved in between, mm.
+  double travelled() const { return travelled_; }
   /// Pseudonormal of the closest feature of `s` (face, edge: sum of its two faces, vertex: angle-weighted), not unit:
   /// its sign against q − point is exact for a closed, non-self-intersecting surface (Bærentzen & Aanæs 2005).
   Eigen::Vector3d pseudonormal(const Points& p, const SurfacePoint& s) const;
@@ -51,6 +56,7 @@ class CollisionSurface {
   Eigen::Vector3d boxHi_ = Eigen::Vector3d::Zero();  ///< the upper corner of the grid's box (the lower is its layout's)
   Points built_;                                     ///< the particles [idxLo_, idxHi_] at the last update()
   double meanEdge_ = 0;                              ///< mean length of the triangles' first edges at the last update()
+  double travelled_ = 0;                             ///< see travelled()
   mutable std::unique_ptr<WindingNumber> winding_;   ///< of the last update(), built on demand
   mutable std::mutex windingMutex_;
 };

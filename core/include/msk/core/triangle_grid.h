@@ -41,9 +41,11 @@ class TriangleGrid {
   /// touches within the 3×3×3 block around q's cell. Of equally close triangles (a shared vertex or edge) the one a
   /// scan of the block in z, y, x order meets first wins, then the lower index. `hint` (optional): a triangle likely
   /// to be the closest (the last answer for a point that has moved little); when it lies within `radius` the scan
-  /// starts from it and skips the cells and triangles farther than it, with the same answer. Thread-safe.
+  /// starts from it and skips the cells and triangles farther than it, with the same answer. `clearance` (optional):
+  /// when nothing lies within `radius`, a distance (≥ radius) that no triangle is nearer than, from what the scan saw.
+  /// Thread-safe.
   SurfacePoint closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q, double radius,
-                             int hint = -1) const;
+                             int hint = -1, double* clearance = nullptr) const;
 
   /// The closest point of the triangles to `q` at any distance: rings of cells around q's cell until no triangle not
   /// yet seen can be closer (border cells reach to infinity outward); of equally close triangles the lower index
