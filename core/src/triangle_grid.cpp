@@ -37,35 +37,40 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   query_ = 0;
   std::vector<CellItem>& boxes = boxes_;
   boxes.resize(static_cast<size_t>(triangles_));
+  firstCells_.resize(static_cast<size_t>(triangles_));
   lastCells_.resize(static_cast<size_t>(triangles_));
   for (int t = 0; t < triangles_; ++t) {
     const Eigen::Vector3d x[3] = {p.row(tri(t, 0)), p.row(tri(t, 1)), p.row(tri(t, 2))};
     const Eigen::Vector3d lo = x[0].cwiseMin(x[1]).cwiseMin(x[2]), hi = x[0].cwiseMax(x[1]).cwiseMax(x[2]);
     CellItem& item = boxes[static_cast<size_t>(t)];
+    // Grown by a millionth (more than a float's rounding, 2^-24 of the value) before rounding to float.
     for (int a = 0; a < 3; ++a) {
-      item.lo[a] = lo[a];
-      item.hi[a] = hi[a];
+      item.lo[a] = static_cast<float>(lo[a] - (std::abs(lo[a]) + 1) * 1e-6);
+      item.hi[a] = static_cast<float>(hi[a] + (std::abs(hi[a]) + 1) * 1e-6);
     }
     item.triangle = t;
     const Eigen::Vector3i first = cellOf(lo);
-    for (int a = 0; a < 3; ++a) item.cell[a] = first[a];
+    firstCells_[static_cast<size_t>(t)] = {first[0], first[1], first[2]};
     lastCells_[static_cast<size_t>(t)] = cellOf(hi);
   }
-  auto forCells = [&](const CellItem& item, auto&& visit) {
-    const Eigen::Vector3i a(item.cell[0], item.cell[1], item.cell[2]);
-    const Eigen::Vector3i& b = lastCells_[static_cast<size_t>(item.triangle)];
+  auto forCells = [&](int t, auto&& visit) {
+    const std::array<int, 3>& a = firstCells_[static_cast<size_t>(t)];
+    const Eigen::Vector3i& b = lastCells_[static_cast<size_t>(t)];
     for (int z = a[2]; z <= b[2]; ++z)
       for (int y = a[1]; y <= b[1]; ++y)
         for (int x = a[0]; x <= b[0]; ++x) visit(cellIndex(x, y, z));
   };
-  for (const CellItem& item : boxes) forCells(item, [&](size_t ci) { ++start_[ci + 2]; });
+  for (int t = 0; t < triangles_; ++t) forCells(t, [&](size_t ci) { ++start_[ci + 2]; });
   for (size_t i = 2; i < cells + 2; ++i) start_[i] += start_[i - 1];
   // Resized, not cleared: every item is written below.
   items_.resize(static_cast<size_t>(start_[cells + 1]));
-  for (const CellItem& item : boxes)
-    forCells(item, [&](size_t ci) { items_[static_cast<size_t>(start_[ci + 1]++)] = item; });
   itemCells_.resize(items_.size());
-  for (size_t k = 0; k < items_.size(); ++k) itemCells_[k] = {items_[k].cell[0], items_[k].cell[1], items_[k].cell[2]};
+  for (int t = 0; t < triangles_; ++t)
+    forCells(t, [&](size_t ci) {
+      const size_t k = static_cast<size_t>(start_[ci + 1]++);
+      items_[k] = boxes[static_cast<size_t>(t)];
+      itemCells_[k] = firstCells_[static_cast<size_t>(t)];
+    });
 }
 
 SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, const Eigen::Vector3d& q, double radius,
@@ -84,12 +89,12 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     u[a] = (q[a] - layout_.lo[a]) / layout_.cell;
     c[a] = clampedCell(u[a], a);
   }
-  auto keyOf = [&](const int cell[3], int t) {
+  auto keyOf = [&](const std::array<int, 3>& cell, int t) {
     const Eigen::Vector3i first = Eigen::Vector3i(cell[0], cell[1], cell[2]).cwiseMax(c - Eigen::Vector3i::Ones());
     return cellIndex(first[0], first[1], first[2]) * static_cast<size_t>(triangles_) + static_cast<size_t>(t);
   };
   size_t bestKey = 0;
-  if (hint >= 0 && hint < triangles_ && boxes_.size() == static_cast<size_t>(triangles_)) {
+  if (hint >= 0 && hint < triangles_ && firstCells_.size() == static_cast<size_t>(triangles_)) {
     Eigen::Vector3d bc;
     const Eigen::Vector3d cp = closestPointOnTriangle(
         q, p.row(tri(hint, 0)).transpose(), p.row(tri(hint, 1)).transpose(), p.row(tri(hint, 2)).transpose(), &bc);
@@ -98,7 +103,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
       best.distance = d;
       best.point = cp;
       best.triangle = hint;
-      bestKey = keyOf(boxes_[static_cast<size_t>(hint)].cell, hint);
+      bestKey = keyOf(firstCells_[static_cast<size_t>(hint)], hint);
       for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
     }
   }
@@ -141,7 +146,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
             nearestSq = std::min(nearestSq, d * d);
             continue;
           }
-          const size_t key = keyOf(item.cell, t);
+          const size_t key = keyOf(lowest, t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
           best.distance = d;
           best.point = cp;

@@ -60,20 +60,23 @@ class TriangleGrid {
   size_t cellIndex(int x, int y, int z) const;
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
+  /// A triangle's entry in a cell's list: its bounding box in floats rounded outward (a box the exact one lies in, so
+  /// that a rejection by it is exact) and its index.
   struct CellItem {
-    double lo[3], hi[3];
+    float lo[3], hi[3];
     int triangle;
-    int cell[3];  ///< the cell of the box's lowest corner (its first cell in every scan)
   };
   Layout layout_;
   int triangles_ = 0;
   std::vector<int> start_;       ///< cell ci → its items, items_[start_[ci], start_[ci + 1]) (CSR; one spare entry)
   std::vector<CellItem> items_;  ///< each cell's triangles, by index
-  /// items_[k].cell, apart: a query's test of whether it meets a triangle in its first scanned cell reads only these
+  /// The cell of the lowest corner of each item's triangle's box (its first cell in every scan), apart: a query's test
+  /// of whether it meets a triangle in its first scanned cell reads only these
   std::vector<std::array<int, 3>> itemCells_;
-  std::vector<CellItem> boxes_;  ///< build(): each triangle's box (kept to reuse its memory on the next build)
-  std::vector<Eigen::Vector3i> lastCells_;  ///< build(): the cell of each box's highest corner
-  mutable std::vector<int> seen_;           ///< closest(): the query that last examined each triangle
+  std::vector<CellItem> boxes_;                 ///< build(): each triangle's box (kept to reuse its memory)
+  std::vector<std::array<int, 3>> firstCells_;  ///< each triangle's box's lowest cell
+  std::vector<Eigen::Vector3i> lastCells_;      ///< build(): the cell of each box's highest corner
+  mutable std::vector<int> seen_;               ///< closest(): the query that last examined each triangle
   mutable int query_ = 0;
 };
 
