@@ -133,17 +133,6 @@ FaceTable facesOf(const SimplexMesh& m, const char* caller) {
   return t;
 }
 
-/// Polygon area vector ½ Σ vi × vi+1 (outward for counter-clockwise faces), mm².
-Vec3 polygonAreaVector(const Points& p, const FaceTable& t, size_t f) {
-  Vec3 s = Vec3::Zero();
-  const int b = t.offsets[f], e = t.offsets[f + 1];
-  for (int i = b; i < e; ++i) {
-    const Vec3 a = p.row(t.vertices[i]), c = p.row(t.vertices[i + 1 == e ? b : i + 1]);
-    s += a.cross(c);
-  }
-  return 0.5 * s;
-}
-
 /// Triangle table of the dual: tri(t, j) = the face holding the directed edge (nb(t, j) → t). With that choice the
 /// triangle's edge (j, j+1) is shared with simplex neighbour j and the winding is counter-clockwise from outside.
 Triangles dualTriangles(const NeighborTable& nb, const FaceTable& t) {
@@ -322,13 +311,20 @@ TriangleMesh trianglesFromSimplex(const SimplexMesh& s) {
 
 // ------------------------------------------------------------------------------------------------ geometry
 
-Points simplexVertexNormals(const SimplexMesh& s) {
-  const FaceTable ft = facesOf(s, "simplexVertexNormals");
+namespace {
+/// Area-weighted vertex normals from a valid face table `offsets`/`vertices` over the rows of `s.positions`.
+Points vertexNormals(const SimplexMesh& s, const std::vector<int>& offsets, const std::vector<int>& vertices) {
   const int n = s.vertexCount();
   Points nrm = Points::Zero(n, 3);
-  for (size_t f = 0; f + 1 < ft.offsets.size(); ++f) {
-    const Vec3 area = polygonAreaVector(s.positions, ft, f);
-    for (int i = ft.offsets[f]; i < ft.offsets[f + 1]; ++i) nrm.row(ft.vertices[i]) += area.transpose();
+  for (size_t f = 0; f + 1 < offsets.size(); ++f) {
+    Vec3 area = Vec3::Zero();  // ½ Σ vi × vi+1, outward for counter-clockwise faces
+    const int b = offsets[f], e = offsets[f + 1];
+    for (int i = b; i < e; ++i) {
+      const Vec3 a = s.positions.row(vertices[i]), c = s.positions.row(vertices[i + 1 == e ? b : i + 1]);
+      area += a.cross(c);
+    }
+    area *= 0.5;
+    for (int i = b; i < e; ++i) nrm.row(vertices[i]) += area.transpose();
   }
   for (int v = 0; v < n; ++v) {
     double len = nrm.row(v).norm();
@@ -341,6 +337,19 @@ Points simplexVertexNormals(const SimplexMesh& s) {
     if (len > 0) nrm.row(v) /= len;
   }
   return nrm;
+}
+}  // namespace
+
+Points simplexVertexNormals(const SimplexMesh& s) {
+  const FaceTable ft = facesOf(s, "simplexVertexNormals");
+  return vertexNormals(s, ft.offsets, ft.vertices);
+}
+
+Points validSimplexVertexNormals(const SimplexMesh& s) {
+  if (s.k != 2 || s.faceCount() == 0 || s.neighbors.rows() != s.vertexCount()) return simplexVertexNormals(s);
+  if (!s.positions.allFinite())
+    throw Error("simplexVertexNormals: invalid simplex mesh: non-finite vertex coordinates");
+  return vertexNormals(s, s.faceOffsets, s.faceVertices);
 }
 
 Triangles simplexFanTriangles(const SimplexMesh& s) {

@@ -48,7 +48,7 @@ ImageTargets imageTargets(ObjectState& st, const SimplexMesh& mesh, const Segmen
   st.reuse.moveMm = reuseMoveMm;
   st.reuse.turnDegrees = kReuseTurnDegrees;
   const TargetSearchResult found =
-      searchTargets(feat, mesh.positions, simplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
+      searchTargets(feat, mesh.positions, validSimplexVertexNormals(mesh), mesh.neighbors, st.search, st.polarity, grid,
                     st.search.mode == TargetMode::Profile ? &st.profiles : nullptr, focus, &st.reuse);
   st.searchSeconds += since(ts);
   ImageTargets out{found.targets, scoreWeights(found.scores), found.residual};

@@ -50,6 +50,11 @@ TriangleMesh trianglesFromSimplex(const SimplexMesh& mesh);
 
 /// Area-weighted outward vertex normals of a 2-simplex mesh's surface (smoother than the neighbour-plane normal).
 Points simplexVertexNormals(const SimplexMesh& mesh);
+/// simplexVertexNormals() of a mesh whose tables are known to be valid (simplexMeshProblem() empty, as
+/// simplexFromTriangles() makes it, with its face table) while its positions change, as in every step of a run: only
+/// the positions are checked (finite; Error otherwise), the tables are neither checked again nor copied. A mesh without
+/// its own face table gets the full check.
+Points validSimplexVertexNormals(const SimplexMesh& mesh);
 
 /// The faces of a 2-simplex mesh split into triangles fanned from each face's first vertex (outward, indices are
 /// simplex vertices): a triangulated surface whose corners are the particles themselves (used for collisions).
