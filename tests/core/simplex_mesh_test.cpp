@@ -263,6 +263,25 @@ TEST(SimplexMesh, VertexNormalsPointOutward) {
   }
 }
 
+// The per-step normals of a mesh known valid are those of the checked call, bit for bit, at moved positions too; a
+// non-finite position is still an error, and a mesh without its face table gets the full check.
+TEST(SimplexMesh, NormalsOfAValidMeshSkipOnlyTheTableChecks) {
+  msk::SimplexMesh s = msk::simplexFromTriangles(msk::makeIcosphere(8.0, 3));
+  std::mt19937 rng(2);
+  std::normal_distribution<double> g(0, 0.3);
+  for (int v = 0; v < s.vertexCount(); ++v) s.positions.row(v) += Eigen::RowVector3d(g(rng), g(rng), g(rng));
+  const msk::Points checked = msk::simplexVertexNormals(s), valid = msk::validSimplexVertexNormals(s);
+  EXPECT_TRUE((checked.array() == valid.array()).all());
+  msk::SimplexMesh broken = s;
+  broken.positions(5, 1) = std::nan("");
+  EXPECT_THROW(msk::validSimplexVertexNormals(broken), msk::Error);
+  msk::SimplexMesh bare = s;
+  bare.faceOffsets.clear();
+  bare.faceVertices.clear();
+  bare.neighbors(0, 0) = bare.neighbors(0, 1);  // a vertex listing one neighbour twice
+  EXPECT_THROW(msk::validSimplexVertexNormals(bare), msk::Error);
+}
+
 TEST(ClosestPoint, EveryVoronoiRegion) {
   const Vec3 a(0, 0, 0), b(2, 0, 0), c(0, 2, 0);
   struct Case {
