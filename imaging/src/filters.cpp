@@ -34,24 +34,53 @@ std::vector<double> gaussianKernel(double sigmaVoxels) {
   return k;
 }
 
-/// Convolves every line of `data` along `axis` with `kernel` (odd length), replicating edge values.
+/// Convolves every line of `data` along `axis` with `kernel` (odd length), replicating edge values. Each output is
+/// Σ_t kernel[t]·x[p − radius + t] summed in doubles in the order of t. Along axes 1 and 2 the lines are taken a whole
+/// row of axis 0 at a time (a plane of the image copied into a buffer), so that the sums run over contiguous values,
+/// several lines at once, in the same order for each output.
 void convolveAxis(std::vector<float>& data, const Grid& grid, int axis, const std::vector<double>& kernel) {
   const int n = grid.dims[axis];
   const int radius = static_cast<int>(kernel.size() / 2);
-  std::vector<double> line(n);
-  grid.forEachLine(axis, [&](size_t base, size_t stride) {
-    for (int p = 0; p < n; ++p) line[p] = data[base + p * stride];
-    for (int p = 0; p < n; ++p) {
-      double acc = 0;
-      if (p >= radius && p + radius < n) {  // away from the ends: no clamping (the same sum, term by term)
-        const double* x = line.data() + (p - radius);
-        for (size_t t = 0; t < kernel.size(); ++t) acc += kernel[t] * x[t];
-      } else {
-        for (int t = -radius; t <= radius; ++t) acc += kernel[t + radius] * line[std::clamp(p + t, 0, n - 1)];
+  if (axis == 0) {
+    std::vector<double> line(n);
+    grid.forEachLine(axis, [&](size_t base, size_t stride) {
+      for (int p = 0; p < n; ++p) line[p] = data[base + p * stride];
+      for (int p = 0; p < n; ++p) {
+        double acc = 0;
+        if (p >= radius && p + radius < n) {  // away from the ends: no clamping (the same sum, term by term)
+          const double* x = line.data() + (p - radius);
+          for (size_t t = 0; t < kernel.size(); ++t) acc += kernel[t] * x[t];
+        } else {
+          for (int t = -radius; t <= radius; ++t) acc += kernel[t + radius] * line[std::clamp(p + t, 0, n - 1)];
+        }
+        data[base + p * stride] = static_cast<float>(acc);
       }
-      data[base + p * stride] = static_cast<float>(acc);
+    });
+    return;
+  }
+  const size_t ni = static_cast<size_t>(grid.dims[0]);
+  const size_t stride = axis == 1 ? ni : ni * static_cast<size_t>(grid.dims[1]);
+  const int planes = axis == 1 ? grid.dims[2] : grid.dims[1];
+  const size_t planeStride = axis == 1 ? ni * static_cast<size_t>(grid.dims[1]) : ni;
+  std::vector<double> plane(static_cast<size_t>(n) * ni), acc(ni);
+  for (int o = 0; o < planes; ++o) {
+    const size_t base = static_cast<size_t>(o) * planeStride;
+    for (int p = 0; p < n; ++p) {
+      const float* from = data.data() + base + static_cast<size_t>(p) * stride;
+      double* to = plane.data() + static_cast<size_t>(p) * ni;
+      for (size_t i = 0; i < ni; ++i) to[i] = from[i];
     }
-  });
+    for (int p = 0; p < n; ++p) {
+      std::fill(acc.begin(), acc.end(), 0.0);
+      for (int t = -radius; t <= radius; ++t) {
+        const double k = kernel[static_cast<size_t>(t + radius)];
+        const double* x = plane.data() + static_cast<size_t>(std::clamp(p + t, 0, n - 1)) * ni;
+        for (size_t i = 0; i < ni; ++i) acc[i] += k * x[i];
+      }
+      float* out = data.data() + base + static_cast<size_t>(p) * stride;
+      for (size_t i = 0; i < ni; ++i) out[i] = static_cast<float>(acc[i]);
+    }
+  }
 }
 
 }  // namespace
