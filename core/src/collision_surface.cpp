@@ -24,6 +24,9 @@ CollisionSurface::CollisionSurface(const Triangles& triangles, double reachMm) :
   if (tri_.rows() == 0) return;
   idxLo_ = tri_.minCoeff();
   idxHi_ = tri_.maxCoeff();
+}
+
+void CollisionSurface::buildTopology() const {
   // Vertex → incident triangles (CSR over the particle range), for vertex normals on demand.
   vtStart_.assign(static_cast<size_t>(idxHi_ - idxLo_ + 2), 0);
   for (int t = 0; t < tri_.rows(); ++t)
@@ -93,6 +96,7 @@ Eigen::Vector3d CollisionSurface::faceNormal(const Points& p, int t) const {
 }
 
 Eigen::Vector3d CollisionSurface::vertexNormal(const Points& p, int i, bool angleWeighted) const {
+  std::call_once(topologyBuilt_, [this] { buildTopology(); });
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   const size_t local = static_cast<size_t>(i - idxLo_);
   for (int k = vtStart_[local]; k < vtStart_[local + 1]; ++k) {
@@ -125,6 +129,7 @@ Eigen::Vector3d CollisionSurface::pseudonormal(const Points& p, const SurfacePoi
   }
   if (oneAt >= 0) return vertexNormal(p, tri_(t, oneAt), true);
   if (zeros == 1) {
+    std::call_once(topologyBuilt_, [this] { buildTopology(); });
     auto e = edgeFaces_.find(edgeKey(tri_(t, (zeroAt + 1) % 3), tri_(t, (zeroAt + 2) % 3)));
     if (e != edgeFaces_.end()) return faceNormal(p, e->second.first) + faceNormal(p, e->second.second);
   }

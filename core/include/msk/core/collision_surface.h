@@ -49,9 +49,14 @@ class CollisionSurface {
 
   Triangles tri_;
   double reach_;
-  int idxLo_ = 0, idxHi_ = -1;        ///< range of the surface's particle indices
-  std::vector<int> vtStart_, vtTri_;  ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
-  std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two triangles
+  int idxLo_ = 0, idxHi_ = -1;  ///< range of the surface's particle indices
+  /// The connectivity below, built on the first normal a query needs (most surfaces, as those of each pass of the
+  /// output separation, never need one): thread-safe through `topologyBuilt_`.
+  void buildTopology() const;
+  mutable std::once_flag topologyBuilt_;
+  mutable std::vector<int> vtStart_, vtTri_;  ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
+  mutable std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two
+                                                                          ///< triangles
   TriangleGrid grid_;                                ///< over the triangles at the positions of the last update()
   Eigen::Vector3d boxHi_ = Eigen::Vector3d::Zero();  ///< the upper corner of the grid's box (the lower is its layout's)
   Points built_;                                     ///< the particles [idxLo_, idxHi_] at the last update()
