@@ -433,11 +433,7 @@ BENCHMARK(BM_VolumeSimplex)->Arg(6)->Arg(13)->Arg(27)->Arg(55)->Unit(benchmark::
 void BM_WindingNumberNearSurface(benchmark::State& state) {
   const int s = static_cast<int>(state.range(0));
   msk::TriangleMesh m = unitSphere(s).first;
-  double edge = 0;
-  for (int f = 0; f < m.faceCount(); ++f)
-    edge += (m.vertices.row(m.faces(f, 0)) - m.vertices.row(m.faces(f, 1))).norm();
-  edge /= m.faceCount();
-  const double radius = 2.0 / edge;
+  const double radius = 2.0 / msk::meanEdgeLength(m);
   m.vertices *= radius;
   const msk::WindingNumber winding(m.vertices, m.faces, 2.0);
   std::vector<Eigen::Vector3d> queries;

@@ -138,10 +138,9 @@ Eigen::Vector3d CollisionSurface::pseudonormal(const Points& p, const SurfacePoi
 
 const WindingNumber& CollisionSurface::winding(const Points& p) const {
   std::lock_guard<std::mutex> lock(windingMutex_);
-  // Built at the current positions (no stale far field), so clusters can be small: leaves of about one edge (1–1.5
-  // edges are fastest on icospheres of 5 k to 82 k triangles, kernels_bench BM_WindingNumberNearSurface).
-  const double clusterEdges = 1.0;
-  if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_, clusterEdges * meanEdge_);
+  // Built at the current positions (no stale far field), so clusters can be small: leaves of one edge (1–1.5 edges
+  // are fastest on icospheres of 5 k to 82 k triangles, kernels_bench BM_WindingNumberNearSurface).
+  if (!winding_) winding_ = std::make_unique<WindingNumber>(p, tri_, meanEdge_);
   return *winding_;
 }
 

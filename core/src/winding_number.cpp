@@ -14,15 +14,24 @@ namespace msk {
 
 namespace {
 constexpr double kFourPi = 4.0 * 3.14159265358979323846;
+
+/// The solid angle of triangle (a, b, c) seen from q as 2·atan2(num, den) (Van Oosterom and Strackee 1983): den + i·num
+/// is the complex number whose argument is half that angle.
+struct HalfSolidAngle {
+  double num, den;
+};
+HalfSolidAngle halfSolidAngle(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                              const Eigen::Vector3d& c) {
+  const Eigen::Vector3d x = a - q, y = b - q, z = c - q;
+  const double lx = x.norm(), ly = y.norm(), lz = z.norm();
+  return {x.dot(y.cross(z)), lx * ly * lz + x.dot(y) * lz + y.dot(z) * lx + z.dot(x) * ly};
 }
+}  // namespace
 
 double triangleWindingNumber(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                              const Eigen::Vector3d& c) {
-  const Eigen::Vector3d x = a - q, y = b - q, z = c - q;
-  const double lx = x.norm(), ly = y.norm(), lz = z.norm();
-  const double num = x.dot(y.cross(z));
-  const double den = lx * ly * lz + x.dot(y) * lz + y.dot(z) * lx + z.dot(x) * ly;
-  return 2.0 * std::atan2(num, den) / kFourPi;
+  const HalfSolidAngle h = halfSolidAngle(q, a, b, c);
+  return 2.0 * std::atan2(h.num, h.den) / kFourPi;
 }
 
 WindingNumber::WindingNumber(const Points& vertices, const Triangles& faces, double clusterMm, double farFactor)
@@ -208,11 +217,8 @@ double WindingNumber::sum(const Eigen::Vector3d& q, const Corner& corner) const 
     }
     for (int k = n.begin; k < n.end; ++k) {
       const int t = order_[static_cast<size_t>(k)];
-      const Eigen::Vector3d x = corner(t, 0) - q, y = corner(t, 1) - q, z = corner(t, 2) - q;
-      const double lx = x.norm(), ly = y.norm(), lz = z.norm();
-      const double num = x.dot(y.cross(z));
-      const double den = lx * ly * lz + x.dot(y) * lz + y.dot(z) * lx + z.dot(x) * ly;
-      near.add(den, num);
+      const HalfSolidAngle h = halfSolidAngle(q, corner(t, 0), corner(t, 1), corner(t, 2));
+      near.add(h.den, h.num);
     }
   }
   return w + 2.0 * near.value() / kFourPi;

@@ -143,11 +143,10 @@ TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
 // partner's travel since, beyond the reach) finds at every step exactly the contacts of a set built afresh.
 TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
   const msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {21.5, 0, 0});
+  const msk::TriangleMesh both = msk::test::joinedMeshes(a, b);  // A's particles first, then B's
   const int na = a.vertexCount(), nb = b.vertexCount();
-  msk::Points p(na + nb, 3);
-  p.topRows(na) = a.vertices;
-  p.bottomRows(nb) = b.vertices;
-  const msk::Triangles tb = b.faces.array() + na;
+  msk::Points p = both.vertices;
+  const msk::Triangles tb = both.faces.bottomRows(b.faceCount());
   msk::CollisionConstraints kept(0, na, tb, 0.2, 1.0, 0.0);
   std::mt19937 rng(9);
   int compared = 0;

@@ -106,10 +106,7 @@ TEST(WindingNumber, LivePositionsFollowTheMovedSurface) {
 // and out along the normal get the exact sum's answer, and the tree's value stays within 0.05 of it.
 TEST(WindingNumber, TreeMatchesExactNearALargeSurface) {
   const msk::TriangleMesh sphere = msk::makeIcosphere(50, 5, {4, -7, 2});
-  double edge = 0;
-  for (int f = 0; f < sphere.faceCount(); ++f)
-    edge += (sphere.vertices.row(sphere.faces(f, 0)) - sphere.vertices.row(sphere.faces(f, 1))).norm();
-  edge /= sphere.faceCount();
+  const double edge = msk::meanEdgeLength(sphere);
   const msk::WindingNumber wn(sphere.vertices, sphere.faces, edge);
   const Eigen::Vector3d centre(4, -7, 2);
   double worst = 0;
