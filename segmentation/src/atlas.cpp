@@ -761,47 +761,28 @@ std::vector<MuscleOnBone> musclesOnLongBones(const Scene& scene) {
   return out;
 }
 
-/// The start of `runs` (allowed by `allowed`) whose run reached the highest profile match for object i, and that
-/// match; (0, −∞) if none has one.
-template <typename Allowed>
-std::pair<size_t, double> bestStartOf(const std::vector<AtlasStartRun>& runs, size_t i, Allowed&& allowed) {
-  std::pair<size_t, double> best{0, -std::numeric_limits<double>::infinity()};
-  for (size_t r = 0; r < runs.size(); ++r) {
-    const double m = runs[r].profileMatch[i];
-    if (allowed(runs[r]) && std::isfinite(m) && m > best.second) best = {r, m};
-  }
-  return best;
-}
-
-/// Each object's start: the start whose run reached the highest profile match for it (the first start where no run
-/// has one, e.g. the gradient force, and on ties). The muscles on one long bone take turned starts of one direction
-/// only: each muscle its best start among the unturned ones and those turned one way, the way whose best matches sum
-/// higher. Neighbours turned opposite ways would start pressed into each other on one side and apart on the other.
+/// Each object's start among several subjects' (AtlasStarts::Each, an atlas of several): the start whose run reached
+/// the highest profile match for it (the first start where no run has one, e.g. the gradient force, and on ties).
 std::vector<size_t> bestStarts(const Atlas& atlas, const std::vector<AtlasStartRun>& runs) {
-  const Scene& scene = atlas.scene;
-  const size_t n = scene.objects.size();
-  std::vector<size_t> chosen(n, 0);
-  for (size_t i = 0; i < n; ++i) chosen[i] = bestStartOf(runs, i, [](const AtlasStartRun&) { return true; }).first;
-  std::map<size_t, std::vector<size_t>> musclesOfBone;
-  for (const MuscleOnBone& m : musclesOnLongBones(scene)) musclesOfBone[m.bone].push_back(m.muscle);
-  for (const auto& [bone, muscles] : musclesOfBone) {
-    double bestSum = -std::numeric_limits<double>::infinity();
-    for (const double sign : {-1.0, 1.0}) {
-      auto oneWay = [sign](const AtlasStartRun& r) { return r.twistDegrees == 0 || r.twistDegrees * sign > 0; };
-      double sum = 0;
-      std::vector<size_t> pick;
-      for (size_t i : muscles) {
-        const auto [r, m] = bestStartOf(runs, i, oneWay);
-        pick.push_back(r);
-        sum += std::isfinite(m) ? m : 0.0;
-      }
-      if (sum > bestSum) {
-        bestSum = sum;
-        for (size_t k = 0; k < muscles.size(); ++k) chosen[muscles[k]] = pick[k];
+  std::vector<size_t> chosen(atlas.scene.objects.size(), 0);
+  for (size_t i = 0; i < chosen.size(); ++i) {
+    double best = -std::numeric_limits<double>::infinity();
+    for (size_t r = 0; r < runs.size(); ++r) {
+      const double m = runs[r].profileMatch[i];
+      if (std::isfinite(m) && m > best) {
+        best = m;
+        chosen[i] = r;
       }
     }
   }
   return chosen;
+}
+
+/// The sum of a run's finite profile matches (0 if none has one).
+double matchSum(const AtlasStartRun& run) {
+  double sum = 0;
+  for (double m : run.profileMatch) sum += std::isfinite(m) ? m : 0.0;
+  return sum;
 }
 
 }  // namespace
@@ -824,7 +805,12 @@ int turnedAboutBone(const Atlas& atlas, Placement& placement, double degrees) {
 std::vector<double> atlasStartTwists(const Atlas& atlas, AtlasStarts starts) {
   if (starts != AtlasStarts::Each || atlasSubjectCount(atlas) != 1 || musclesOnLongBones(atlas.scene).empty())
     return {0.0};
-  return {0.0, -kStartTwistDegrees, kStartTwistDegrees};
+  std::vector<double> twists{0.0};
+  for (int k = 1; k <= kStartTwistSteps; ++k) {
+    twists.push_back(-k * kStartTwistDegrees);
+    twists.push_back(k * kStartTwistDegrees);
+  }
+  return twists;
 }
 
 AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
@@ -834,11 +820,16 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   const std::vector<double> twists = atlasStartTwists(atlas, starts);
   const size_t startCount = subjects * twists.size();
   const bool several = startCount > 1;
-  const size_t runs = several ? startCount + 1 : 1;  // with several starts, the final run from the kept ones
-  // The choice needs only each start's evolved surfaces (their profile match is taken before the output separation):
-  // the starts skip the separation, and the final run, whose surfaces are the ones written, does it.
+  // One subject's turned starts differ only in how far all its muscles on a bone are turned: the run that matched the
+  // learned appearance best is the result, whole. Several subjects' starts are each object's own choice, and a final
+  // run evolves every object from its start side by side.
+  const bool turnedOnly = several && subjects == 1;
+  const bool finalRun = several && !turnedOnly;
+  const size_t runs = finalRun ? startCount + 1 : startCount;
+  // A final run's choice needs only each start's evolved surfaces (their profile match is taken before the output
+  // separation): its starts skip the separation, and the final run, whose surfaces are the ones written, does it.
   SegmentOptions startOpts = opts;
-  if (several) startOpts.collision.separationSweeps = 0;
+  if (finalRun) startOpts.collision.separationSweeps = 0;
   auto share = [&](size_t run, const std::string& what) -> ProgressFn {
     if (!progress) return {};
     return [&progress, run, runs, what](double f, const std::string& stage) {
@@ -848,6 +839,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   const size_t n = atlas.scene.objects.size();
   std::vector<Scene> scenes;
   AtlasSegmentation out;
+  size_t kept = 0;  // without a final run: the start whose run is the result
   for (size_t k = 0; k < subjects; ++k) {
     const auto t0 = Clock::now();
     const Atlas view = atlasFromSubject(atlas, k);
@@ -891,10 +883,21 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       if (t > 0) run.placement.seconds = 0;  // placed once, with the subject's first start
       run.secondsPerStage = r.secondsPerStage;
       run.seconds = t == 0 ? since(t0) : since(ts);
+      const bool best = !turnedOnly || out.starts.empty() || matchSum(run) > matchSum(out.starts[kept]);
+      if (turnedOnly && best) kept = out.starts.size();
       out.starts.push_back(std::move(run));
       scenes.push_back(std::move(scene));
-      if (!several) out.result = std::move(r);
+      if (!finalRun && best) out.result = std::move(r);
     }
+  }
+  if (!finalRun) {
+    out.chosen.assign(n, kept);
+    out.placement = out.starts[kept].placement;
+    out.placement.seconds = 0;
+    for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
+    out.scene = std::move(scenes[kept]);
+    if (progress) progress(1.0, "done");
+    return out;
   }
   out.chosen = bestStarts(atlas, out.starts);
   // The final placement: the reference's global placement, each object its start's own (in that subject's world).
@@ -902,20 +905,16 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   out.placement.seconds = 0;
   for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
   for (size_t i = 0; i < n; ++i) out.placement.objects[i] = out.starts[out.chosen[i]].placement.objects[i];
-  if (!several) {
-    out.scene = std::move(scenes[0]);
-  } else {
-    // Each object from its best start, side by side, in one run with every collision pair; the pairs measured again.
-    out.scene = scenes[0];
-    for (size_t i = 0; i < n; ++i) out.scene.objects[i] = scenes[out.chosen[i]].objects[i];
-    for (size_t c = 0; c < out.scene.collisions.size() && c < out.placement.pairs.size(); ++c) {
-      const CollisionPair& cp = out.scene.collisions[c];
-      out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
-                                                         out.scene.objects[static_cast<size_t>(cp.b)].templ);
-    }
-    out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "));
-    judgePlacement(out.placement, out.result);
+  // Each object from its best start, side by side, in one run with every collision pair; the pairs measured again.
+  out.scene = scenes[0];
+  for (size_t i = 0; i < n; ++i) out.scene.objects[i] = scenes[out.chosen[i]].objects[i];
+  for (size_t c = 0; c < out.scene.collisions.size() && c < out.placement.pairs.size(); ++c) {
+    const CollisionPair& cp = out.scene.collisions[c];
+    out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
+                                                       out.scene.objects[static_cast<size_t>(cp.b)].templ);
   }
+  out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "));
+  judgePlacement(out.placement, out.result);
   if (progress) progress(1.0, "done");
   return out;
 }

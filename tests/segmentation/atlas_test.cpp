@@ -77,7 +77,8 @@ TEST(AtlasStarts, MusclesOnALongBoneTurnAboutItsAxis) {
   EXPECT_NEAR((centre.head<3>() - Eigen::Vector3d(5 + 3, 25 - 2, 0 + 7)).norm(), 0, 1e-9);
   for (size_t i : {0, 2, 3}) EXPECT_TRUE(placement.objects[i].transform.isApprox(moved)) << atlas.scene.objects[i].name;
   EXPECT_EQ(msk::atlasStartTwists(atlas, msk::AtlasStarts::Each),
-            (std::vector<double>{0.0, -msk::kStartTwistDegrees, msk::kStartTwistDegrees}));
+            (std::vector<double>{0.0, -msk::kStartTwistDegrees, msk::kStartTwistDegrees, -2 * msk::kStartTwistDegrees,
+                                 2 * msk::kStartTwistDegrees}));
   EXPECT_EQ(msk::atlasStartTwists(atlas, msk::AtlasStarts::Reference), std::vector<double>{0.0});
   // Without a muscle on a long bone there is nothing to turn: one start.
   atlas.scene.collisions = {onVertebra};
@@ -236,9 +237,11 @@ TEST(AtlasRoute, EachObjectStartsFromTheSubjectThatMatchesItBest) {
 // A subject whose muscles the whole-image registration leaves turned about the limb (phantom seed 4 posed: its septa
 // differ from the atlas's, and the limb's outline and the femur are round): the femur's own registration turns it
 // back, and the muscles on it start from its placement. The atlas has one subject, so the muscles also start turned
-// by ±10° about the femur; the hamstrings keep a turned start. Measured (balanced, from the CLI): 0.952 / 0.964 /
-// 0.928 / 0.966; from the placement alone (`--starts reference`) 0.952 / 0.950 / 0.900 / 0.972; with every muscle
-// started from the global placement (at a1fb73b): 0.953 / 0.815 / 0.684 / 0.838.
+// together by ±10° and ±20° about the femur, and the run whose surfaces matched the learned appearance best is kept
+// whole. Measured (balanced, from the CLI): 0.952 / 0.950 / 0.899 / 0.972, the unturned start kept; with every muscle
+// started from the global placement (at a1fb73b): 0.953 / 0.815 / 0.684 / 0.838. (Each muscle from its own best
+// start, with a final run, reached 0.928 for the hamstrings but started them a quarter inside the adductors, and
+// its adductors ended with 15 crossing face pairs: docs/measurements.md.)
 TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   const msk::PhantomPose pose = poseA();
   msk::test::ScratchDir dir;
@@ -247,24 +250,25 @@ TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   EXPECT_GE(run.objects[0].result.dice, 0.94) << run.objects[0].name;
   for (size_t i = 1; i < run.objects.size(); ++i) {
     RecordProperty(run.objects[i].name + "_dice", std::to_string(run.objects[i].result.dice));
-    EXPECT_GE(run.objects[i].result.dice, 0.92) << run.objects[i].name;
+    EXPECT_GE(run.objects[i].result.dice, i == 2 ? 0.88 : 0.92) << run.objects[i].name;
     EXPECT_EQ(run.placement.objects[i].carriedBy, "femur") << run.objects[i].name;
   }
   EXPECT_EQ(run.result.overlapVoxels, 0u);
-  ASSERT_EQ(run.starts.size(), 3u);
+  for (const msk::ObjectResult& o : run.result.objects) EXPECT_EQ(o.selfIntersections, 0u) << o.name;
+  // Five starts, one of them kept whole: the one whose objects' profile matches sum highest.
+  ASSERT_EQ(run.starts.size(), 5u);
   ASSERT_EQ(run.chosen.size(), 4u);
-  EXPECT_NE(run.starts[run.chosen[2]].twistDegrees, 0.0) << "the hamstrings kept the unturned start";
-  // Progress runs once over the four runs (three starts and the final one), never back.
+  auto sum = [](const msk::AtlasStartRun& s) {
+    double m = 0;
+    for (double x : s.profileMatch) m += x;
+    return m;
+  };
+  for (size_t i = 1; i < run.chosen.size(); ++i) EXPECT_EQ(run.chosen[i], run.chosen[0]) << run.objects[i].name;
+  for (const msk::AtlasStartRun& s : run.starts) EXPECT_LE(sum(s), sum(run.starts[run.chosen[0]]));
+  // Progress runs once over the five runs, never back.
   ASSERT_FALSE(run.progress.empty());
   EXPECT_TRUE(std::is_sorted(run.progress.begin(), run.progress.end()));
   EXPECT_DOUBLE_EQ(run.progress.back(), 1.0);
-  // The muscles' kept starts are turned one way only.
-  double way = 0;
-  for (size_t i = 1; i < run.chosen.size(); ++i) {
-    const double t = run.starts[run.chosen[i]].twistDegrees;
-    EXPECT_GE(t * way, 0.0) << run.objects[i].name;
-    if (t != 0) way = t;
-  }
 }
 
 // Scans that cut the anatomy at other levels: the atlas from a 100 mm slab of seed 1, the subject seed 2 posed in a

@@ -184,20 +184,23 @@ Eigen::Matrix4d atlasReferenceToSubject(const Atlas& atlas, size_t k);
 /// Which starts a segmentation with an atlas runs from.
 enum class AtlasStarts {
   Reference,  ///< the reference alone, as placed (one run)
-  /// Each subject's templates, placed by that subject's image, evolved with the whole scene; an atlas of one subject
-  /// also starts with its muscles turned by ±kStartTwistDegrees about the long bone they lie on (atlasStartTwists()).
-  /// Then each object starts a final run from the start whose run matched the learned appearance best there (the
-  /// highest profile match). A compartment's septa lie at other angles in other subjects, and no one subject's shape,
-  /// nor their mean, starts every muscle of every new subject near enough (docs/measurements.md). Costs one run per
-  /// start (without the output separation) and one more.
+  /// Each subject's templates, placed by that subject's image, evolved with the whole scene. An atlas of one subject
+  /// starts from its placement and with its muscles on a long bone turned together about that bone
+  /// (atlasStartTwists()); the run whose surfaces matched the learned appearance best (the highest sum of the objects'
+  /// profile matches) is the result. An atlas of several subjects: each object then starts a final run from the start
+  /// whose run matched the learned appearance best there (the highest profile match). A compartment's septa lie at
+  /// other angles in other subjects, and no one subject's shape, nor their mean, starts every muscle of every new
+  /// subject near enough (docs/measurements.md). Costs one run per start, and with several subjects one more.
   Each
 };
 
-/// The turn (degrees) of the turned starts of an atlas of one subject.
+/// The step (degrees) between the turned starts of an atlas of one subject, and their number each way.
 constexpr double kStartTwistDegrees = 10.0;
+constexpr int kStartTwistSteps = 2;
 
 /// The turns (degrees) each subject of `atlas` starts from under `starts`: {0} but for AtlasStarts::Each with an atlas
-/// of one subject that has a muscle on a long bone (turnedAboutBone()): {0, −kStartTwistDegrees, +kStartTwistDegrees}.
+/// of one subject that has a muscle on a long bone (turnedAboutBone()): 0, then ±k·kStartTwistDegrees for k = 1 ..
+/// kStartTwistSteps.
 std::vector<double> atlasStartTwists(const Atlas& atlas, AtlasStarts starts);
 
 /// Turns each muscle that lies on exactly one long bone (its one bone collision partner, whose template is at least
@@ -213,18 +216,20 @@ struct AtlasStartRun {
   double twistDegrees = 0;            ///< its muscles' turn about their bone (turnedAboutBone())
   Placement placement;                ///< in the subject's world (atlasFromSubject())
   std::vector<double> profileMatch;   ///< per object, of the run's evolved surface (NaN without the profile force)
-  std::vector<QualityStatus> status;  ///< per object (of its surface before any output separation: starts skip it)
+  std::vector<QualityStatus> status;  ///< per object (before the output separation where a final run follows)
   std::map<std::string, double> secondsPerStage;  ///< of its segmentation (SegmentationResult::secondsPerStage)
   double seconds = 0;                             ///< placement and segmentation
 };
 
 /// A segmentation with an atlas.
 struct AtlasSegmentation {
-  Placement placement;        ///< the final run's: the global placement the reference's, each object its start's
-  Scene scene;                ///< the placed scene the final run evolved
-  SegmentationResult result;  ///< the final run (judgePlacement() applied)
+  /// The result's: the kept start's; after a final run, the reference's global placement and each object its start's
+  Placement placement;
+  Scene scene;                        ///< the placed scene the result evolved
+  SegmentationResult result;          ///< the kept start's run, or the final run (judgePlacement() applied)
   std::vector<AtlasStartRun> starts;  ///< each start's run (empty with one start)
-  std::vector<size_t> chosen;         ///< per object: the start (index into `starts`) its final run started from
+  /// per object: the start (index into `starts`) its result comes from (one start for all but after a final run)
+  std::vector<size_t> chosen;
 };
 
 /// Places `atlas` in `image` and segments it: from the reference alone, or (AtlasStarts::Each) from each start of
