@@ -135,6 +135,9 @@ void judgeQuality(ObjectQuality& q, const QualityThresholds& t) {
   if (std::isfinite(q.profileMatch) && q.profileMatch < t.minProfileMatch)
     flag(QualityStatus::Doubtful, "correlation of the surface's profiles with the learned ones", q.profileMatch, "<",
          t.minProfileMatch);
+  if (q.crossingFacePairs > t.maxCrossingFacePairs)
+    flag(QualityStatus::Doubtful, "pairs of faces of the surface crossing each other",
+         static_cast<double>(q.crossingFacePairs), ">", static_cast<double>(t.maxCrossingFacePairs));
 }
 
 }  // namespace msk

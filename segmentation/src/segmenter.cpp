@@ -251,6 +251,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       };
     }
     o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise, {}, unseen);
+    o.quality.crossingFacePairs = o.selfIntersections;
+    judgeQuality(o.quality);
     const ObjectState& st = objs[i];
     if (st.force == TargetMode::Profile && st.profiles.profiles.rows() == st.current.vertexCount()) {
       const LearnedProfiles now =

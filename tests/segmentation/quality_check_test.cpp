@@ -221,3 +221,19 @@ TEST(QualityCheck, ProfileMatchIsJudgedWhereMeasured) {
   ASSERT_EQ(q.reasons.size(), 1u);
   EXPECT_NE(q.reasons[0].find("profiles"), std::string::npos) << q.reasons[0];
 }
+
+// A written surface whose faces cross each other is not a valid closed surface: doubtful, whatever its other figures.
+TEST(QualityCheck, CrossingFacesAreDoubtful) {
+  ObjectQuality q;
+  q.inImageShare = 1;
+  q.edgeShare = 0.8;
+  q.profileMatch = 0.9;
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Ok);
+  q.crossingFacePairs = 15;
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Doubtful);
+  ASSERT_EQ(q.reasons.size(), 1u);
+  EXPECT_NE(q.reasons[0].find("crossing"), std::string::npos) << q.reasons[0];
+  EXPECT_NE(q.reasons[0].find("15"), std::string::npos) << q.reasons[0];
+}

@@ -46,6 +46,9 @@ struct ObjectQuality {
   /// and where they learned it, of the correlation of the two (1: every boundary looks as where the profiles were
   /// learned); NaN otherwise.
   double profileMatch = std::numeric_limits<double>::quiet_NaN();
+  /// Pairs of faces of the written surface that cross each other (ObjectResult::selfIntersections), once counted; 0
+  /// until then.
+  size_t crossingFacePairs = 0;
   QualityStatus status = QualityStatus::Ok;
   std::vector<std::string> reasons;  ///< one line per figure beyond its limit: the status, figure, value and limit
 };
@@ -58,6 +61,7 @@ struct QualityThresholds {
   double minEdgeShare = 0.1;        ///< below: failed (no edge of the object's polarity stands out of the noise)
   double minContrastToNoise = 0.5;  ///< below, where the contrast is judged: doubtful (no consistent boundary)
   double minProfileMatch = 0.3;     ///< below, where measured: doubtful (the boundary does not look as learned)
+  size_t maxCrossingFacePairs = 0;  ///< above: doubtful (the surface crosses itself: not a valid closed surface)
 };
 
 /// The noise level of an image: 1.4826 · MAD of the differences of neighbouring voxels along i, divided by √2 (0 for a
