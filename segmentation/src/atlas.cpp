@@ -839,7 +839,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   const size_t n = atlas.scene.objects.size();
   std::vector<Scene> scenes;
   AtlasSegmentation out;
-  size_t kept = 0;  // without a final run: the start whose run is the result
+  size_t kept = 0;  // without a final run, the start whose run is the result; with one, the reference's (start 0)
   for (size_t k = 0; k < subjects; ++k) {
     const auto t0 = Clock::now();
     const Atlas view = atlasFromSubject(atlas, k);
@@ -890,20 +890,16 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       if (!finalRun && best) out.result = std::move(r);
     }
   }
+  out.chosen = finalRun ? bestStarts(atlas, out.starts) : std::vector<size_t>(n, kept);
+  out.placement = out.starts[kept].placement;
+  out.placement.seconds = 0;
+  for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
   if (!finalRun) {
-    out.chosen.assign(n, kept);
-    out.placement = out.starts[kept].placement;
-    out.placement.seconds = 0;
-    for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
     out.scene = std::move(scenes[kept]);
     if (progress) progress(1.0, "done");
     return out;
   }
-  out.chosen = bestStarts(atlas, out.starts);
   // The final placement: the reference's global placement, each object its start's own (in that subject's world).
-  out.placement = out.starts[0].placement;
-  out.placement.seconds = 0;
-  for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;
   for (size_t i = 0; i < n; ++i) out.placement.objects[i] = out.starts[out.chosen[i]].placement.objects[i];
   // Each object from its best start, side by side, in one run with every collision pair; the pairs measured again.
   out.scene = scenes[0];

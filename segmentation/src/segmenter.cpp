@@ -252,7 +252,6 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     }
     o.quality = measureQuality(finest, o.mesh, o.polarity, objs[i].search.mode, noise, {}, unseen);
     o.quality.crossingFacePairs = o.selfIntersections;
-    judgeQuality(o.quality);
     const ObjectState& st = objs[i];
     if (st.force == TargetMode::Profile && st.profiles.profiles.rows() == st.current.vertexCount()) {
       const LearnedProfiles now =
@@ -266,8 +265,8 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
           ++counted;
         }
       o.quality.profileMatch = counted > 0 ? sum / counted : 0.0;
-      judgeQuality(o.quality);
     }
+    judgeQuality(o.quality);  // again, with the figures measureQuality() does not take
     res.status = worseStatus(res.status, o.quality.status);
   }
   res.secondsPerStage["quality-check"] = since(tc);

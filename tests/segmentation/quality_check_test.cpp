@@ -53,6 +53,14 @@ msk::ImageF noiseImage(const msk::Grid& g, unsigned seed) {
   return noise;
 }
 
+// The figures of a surface wholly in the image with most of its vertices on an edge: ok by themselves.
+ObjectQuality onAnEdge() {
+  ObjectQuality q;
+  q.inImageShare = 1;
+  q.edgeShare = 0.8;
+  return q;
+}
+
 }  // namespace
 
 // A surface on the ball's boundary is on an edge of its polarity everywhere, with a strong contrast; the same surface
@@ -207,9 +215,7 @@ TEST_F(ThighQuality, WrongBodyPartIsFlagged) {
 
 // The profile match is judged where it was measured (objects on the profile force) and only there.
 TEST(QualityCheck, ProfileMatchIsJudgedWhereMeasured) {
-  ObjectQuality q;
-  q.inImageShare = 1;
-  q.edgeShare = 0.8;
+  ObjectQuality q = onAnEdge();
   msk::judgeQuality(q);
   EXPECT_EQ(q.status, QualityStatus::Ok);  // not measured (NaN)
   q.profileMatch = 0.58;                   // the lowest of the correct real-scan runs (an MR vertebra)
@@ -224,9 +230,7 @@ TEST(QualityCheck, ProfileMatchIsJudgedWhereMeasured) {
 
 // A written surface whose faces cross each other is not a valid closed surface: doubtful, whatever its other figures.
 TEST(QualityCheck, CrossingFacesAreDoubtful) {
-  ObjectQuality q;
-  q.inImageShare = 1;
-  q.edgeShare = 0.8;
+  ObjectQuality q = onAnEdge();
   q.profileMatch = 0.9;
   msk::judgeQuality(q);
   EXPECT_EQ(q.status, QualityStatus::Ok);
