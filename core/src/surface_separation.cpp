@@ -50,6 +50,24 @@ struct ActiveSample {
   double distance = 0;  ///< its distance to B then (outside), mm; far samples wait for the next refresh
 };
 
+/// What the queries of one direction of one pair learnt of each of A's samples, for the next ones: the triangle of B
+/// its last query found (−1: none), where its next query starts; and, from a refresh that found nothing within the
+/// reach, a distance no triangle of B was nearer than (0: none known; in floats rounded down) as of `stamp`, the two
+/// surfaces' summed travel (SeparationState::travelled) then. A sample whose distance, less the travel since, is still
+/// beyond the reach cannot find B: the next refresh skips it.
+struct SampleMemory {
+  std::vector<int> triangle;
+  std::vector<float> clearance;
+  double stamp = 0;
+};
+
+/// `x` in a float no larger than it (x ≥ 0).
+float floatBelow(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
 /// One direction of one pair, A's samples against B's surface: each sample inside B or closer than the gap is moved
 /// to the gap outside (Table 4.23 position correction, spring target, no friction) with the correction of Pc = P̄B − P̄A
 /// shared by the corners of both sides through the reduced mass m̄ = (Σ ak² wA + Σ bj² wB)⁻¹, so linear momentum is
@@ -62,31 +80,55 @@ struct PassResult {
   double largestMm = 0;  ///< largest correction |ΔPc|
   bool anyInside = false;
 };
+/// `travel`: the two surfaces' summed travel at the start of the pass (what `memory` is stamped with).
 PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, double gap, double reach, bool refresh,
-                        std::vector<ActiveSample>& active) {
+                        std::vector<ActiveSample>& active, SampleMemory& memory, double travel) {
   PassResult out;
   CollisionSurface surface(B.faces, reach);
   surface.update(B.vertices);
   std::optional<WindingNumber> winding;
+  const int n = refresh ? sampleCount(A) : static_cast<int>(active.size());
   if (refresh) {
     winding.emplace(B.vertices, B.faces);
     active.clear();
+    if (memory.clearance.size() != static_cast<size_t>(n)) {
+      memory.clearance.assign(static_cast<size_t>(n), 0.0f);
+      memory.triangle.assign(static_cast<size_t>(n), -1);
+    }
   }
-  const int n = refresh ? sampleCount(A) : static_cast<int>(active.size());
+  const double since = travel - memory.stamp;
   for (int i = 0; i < n; ++i) {
     // Between refreshes a sample last seen outside and more than 1 mm beyond the gap is left alone: corrections
     // move surfaces by far less per sweep.
     if (!refresh && active[static_cast<size_t>(i)].distance > gap + 1.0) continue;
     const int k = refresh ? i : active[static_cast<size_t>(i)].sample;
+    if (refresh) {
+      // Still out of reach since the last refresh: nothing can be found (its bound carried to this pass's stamp).
+      float& clear = memory.clearance[static_cast<size_t>(k)];
+      const double left = static_cast<double>(clear) - since;
+      if (clear > 0 && left > reach * (1 + 1e-9) + 1e-9) {
+        clear = floatBelow(left);
+        continue;
+      }
+      clear = 0;
+    }
     int ia[3];
     double wa[3];
     const int na = sampleCorners(A, k, ia, wa);
     Eigen::Vector3d q = Eigen::Vector3d::Zero();
     for (int c = 0; c < na; ++c) q += wa[c] * A.vertices.row(ia[c]).transpose();
     // The grid is from the start of this pass (B moves a little with each correction): it only guides the search,
-    // the closest point is computed at B's current positions.
-    const SurfacePoint s = surface.closest(B.vertices, q, reach);
-    if (s.triangle < 0) continue;
+    // the closest point is computed at B's current positions. The search starts from the sample's last triangle. A
+    // bound it gives when it finds nothing holds for B as it was at the pass's start or is now, whichever is nearer: it
+    // is stamped with the travel at the pass's start.
+    double clearance = 0;
+    int& hint = memory.triangle[static_cast<size_t>(k)];
+    const SurfacePoint s = surface.closest(B.vertices, q, reach, hint, refresh ? &clearance : nullptr);
+    hint = s.triangle;
+    if (s.triangle < 0) {
+      if (refresh) memory.clearance[static_cast<size_t>(k)] = floatBelow(clearance);
+      continue;
+    }
     Eigen::Vector3d normal;  // B's outward side at the contact
     bool inside = false;
     if (s.distance > 1e-12) {
@@ -131,6 +173,7 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     ++out.applied;
     out.largestMm = std::max(out.largestMm, delta.norm());
   }
+  if (refresh) memory.stamp = travel;
   return out;
 }
 
@@ -218,7 +261,11 @@ std::vector<bool> farPairs(const std::vector<TriangleMesh*>& surfaces, const std
 /// passes that moved a surface).
 struct SeparationState {
   std::vector<std::vector<ActiveSample>> active;  ///< per pair and direction: samples near the partner
-  std::vector<long> version;                      ///< per surface
+  std::vector<SampleMemory> memory;               ///< per pair and direction: what the samples' queries learnt
+  /// Per surface: the sum over the passes of the largest move of any of its vertices in the pass (the difference of
+  /// two readings bounds how far any point of it has moved in between), mm
+  std::vector<double> travelled;
+  std::vector<long> version;     ///< per surface
   std::vector<long> settledAt;   ///< per pair: the larger version of its surfaces when it was found settled (−1: not)
   std::vector<long> examinedAt;  ///< per pair: that version when it was last examined
   std::vector<PassResult> results;  ///< per pair: the last pass
@@ -245,10 +292,19 @@ PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<do
         TriangleMesh& A = *surfaces[static_cast<size_t>(p.a)];
         TriangleMesh& B = *surfaces[static_cast<size_t>(p.b)];
         const double wA = inverseMass[static_cast<size_t>(p.a)], wB = inverseMass[static_cast<size_t>(p.b)];
+        double& travelA = st.travelled[static_cast<size_t>(p.a)];
+        double& travelB = st.travelled[static_cast<size_t>(p.b)];
         for (int d = 0; d < 2; ++d) {
           std::vector<ActiveSample>& act = st.active[2 * k + static_cast<size_t>(d)];
-          const PassResult r = d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act)
-                                      : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act);
+          SampleMemory& memory = st.memory[2 * k + static_cast<size_t>(d)];
+          const Points startA = A.vertices, startB = B.vertices;
+          const PassResult r =
+              d == 0 ? separateOnce(A, B, wA, wB, p.gapMm, reach[k], refresh, act, memory, travelA + travelB)
+                     : separateOnce(B, A, wB, wA, p.gapMm, reach[k], refresh, act, memory, travelA + travelB);
+          if (r.applied > 0) {
+            travelA += (A.vertices - startA).rowwise().norm().maxCoeff();
+            travelB += (B.vertices - startB).rowwise().norm().maxCoeff();
+          }
           st.results[k].applied += r.applied;
           st.results[k].largestMm = std::max(st.results[k].largestMm, r.largestMm);
           st.results[k].anyInside = st.results[k].anyInside || r.anyInside;
@@ -300,6 +356,8 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   const std::vector<bool> far = farPairs(surfaces, pairs, reach);
   SeparationState st;
   st.active.resize(2 * np);
+  st.memory.resize(2 * np);
+  st.travelled.assign(surfaces.size(), 0.0);
   st.version.assign(surfaces.size(), 0);
   st.settledAt.assign(np, -1);
   st.examinedAt.assign(np, -1);
