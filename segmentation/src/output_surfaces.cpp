@@ -13,7 +13,7 @@ namespace msk::detail {
 
 std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const std::vector<ObjectState>& objs,
                                                  const Scene& scene, const std::vector<PairContact>& contacts,
-                                                 const SegmentOptions& opts, const Grid& grid) {
+                                                 const SegmentOptions& opts, const Grid& grid, bool& crossingsCounted) {
   // The output surfaces (the dual triangle meshes, not the simplex surfaces the contacts acted on) are separated last,
   // so that what is written out and rasterised has no vertex inside a partner; then penetration is measured on them.
   const auto ts = Clock::now();
@@ -37,15 +37,22 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
   res.separationCorrections = sep.corrections;
   // The separation moves vertices one by one and can fold a surface squeezed between partners: unfolded, then
   // separated again (twice at most).
+  // An unfolding that moved nothing has counted each surface's crossing faces as written, unless a later step moves it.
+  crossingsCounted = false;
   for (int again = 0; again < 2 && opts.surface.unfoldSurfaces; ++again) {
-    int moved = 0;
-    for (ObjectResult& o : res.objects) {
+    std::vector<int> movedBy(res.objects.size(), 0);
+    parallelEach(res.objects.size(), opts.evolution.threads, [&](size_t i) {
+      ObjectResult& o = res.objects[i];
       const UnfoldReport u = unfoldSurface(o.mesh);
       o.foldsFound += u.before;
       o.unfoldedVertices += u.verticesMoved;
-      moved += u.verticesMoved;
+      o.selfIntersections = u.after;
+      movedBy[i] = u.verticesMoved;
+    });
+    if (std::all_of(movedBy.begin(), movedBy.end(), [](int m) { return m == 0; })) {
+      crossingsCounted = true;
+      break;
     }
-    if (moved == 0) break;
     const SeparationReport more = separateSurfaces(surfaces, inverseMass, pairs, so);
     res.separationSweeps += more.sweeps;
     res.separationCorrections += more.corrections;
@@ -64,6 +71,7 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
     repairPairs.emplace_back(p.a, p.b);
   }
   res.overlapVoxelsRepaired = repairOverlapVoxels(surfaces, repairPairs, grid, margin, inside).handedOver;
+  if (res.overlapVoxelsRepaired > 0) crossingsCounted = false;  // the repair moved corners of triangles
   for (size_t i = 0; i < res.objects.size(); ++i) {
     ObjectResult& o = res.objects[i];
     o.mesh.pointData["displacement_mm"] = (o.mesh.vertices - objs[i].lv[0].triangles.vertices).rowwise().norm();

@@ -247,9 +247,11 @@ void settleVolumeMesh(ObjectResult& out, const Eigen::VectorXd& restVolumes, con
 /// Separates the output surfaces of the declared pairs (then unfolds what the separation folded and separates again),
 /// hands voxel centres still inside both surfaces of a pair to one of them, and measures each pair's penetration.
 /// Fills the separation and penetration figures of `res`; returns each object's voxels (insideVoxels()).
+/// `crossingsCounted`: whether each object's selfIntersections is that of its surface as returned (the last unfolding
+/// moved nothing and nothing moved the surfaces after it).
 std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const std::vector<ObjectState>& objs,
                                                  const Scene& scene, const std::vector<PairContact>& contacts,
-                                                 const SegmentOptions& opts, const Grid& grid);
+                                                 const SegmentOptions& opts, const Grid& grid, bool& crossingsCounted);
 
 /// The label map: every object's voxels (`inside`, or computed if empty) with its label; voxels claimed by more than
 /// one object are counted and go to bones (muscles and generic objects are written first).

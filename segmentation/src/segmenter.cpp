@@ -216,22 +216,24 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     for (const std::string& w : st.warnings) log::warn(w);
   res.secondsPerStage["preparation"] = since(tp);
   const double detectSeconds = evolve(objs, res, scene, contacts, opts, features, image.grid, progress);
-  for (ObjectState& st : objs) {
-    finishObject(st, opts.surface.unfoldSurfaces);
-    res.objects.push_back(std::move(st.out));
-  }
+  // Each object's output surface on the threads (each writes only its own state).
+  parallelEach(objs.size(), opts.evolution.threads,
+               [&](size_t i) { finishObject(objs[i], opts.surface.unfoldSurfaces); });
+  for (ObjectState& st : objs) res.objects.push_back(std::move(st.out));
   double featureSeconds = features.seconds();
   for (const auto& [image, cache] : profileCaches) featureSeconds += cache->seconds();
   res.secondsPerStage["evolution"] = since(te) - featureSeconds;
-  std::vector<std::vector<size_t>> inside;  // each object's voxels, once its output surface is final
+  std::vector<std::vector<size_t>> inside;              // each object's voxels, once its output surface is final
+  bool crossingsCounted = opts.surface.unfoldSurfaces;  // finishObject()'s unfolding counted them
   if (opts.collision.enabled && !scene.collisions.empty())
-    inside = separateOutputs(res, objs, scene, contacts, opts, image.grid);
+    inside = separateOutputs(res, objs, scene, contacts, opts, image.grid, crossingsCounted);
   if (res.collisionSetsBuilt > 0) res.secondsPerStage["collision-detection"] = detectSeconds;
-  // What is written out: does any surface cross itself? (The unfolding in finishObject() counted it already unless the
-  // separation has moved the surfaces since.)
-  if (!opts.surface.unfoldSurfaces || !inside.empty()) {
+  // What is written out: does any surface cross itself? (Counted already by an unfolding that left the surfaces as
+  // they are written.)
+  if (!crossingsCounted) {
     const auto tq = Clock::now();
-    for (ObjectResult& o : res.objects) o.selfIntersections = selfIntersections(o.mesh);
+    parallelEach(res.objects.size(), opts.evolution.threads,
+                 [&](size_t i) { res.objects[i].selfIntersections = selfIntersections(res.objects[i].mesh); });
     res.secondsPerStage["surface-check"] = since(tq);
   }
   rasteriseLabels(res, scene, inside, image.grid);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,7 +40,8 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
   if (targetVertices < 4) throw ParameterError("targetVertices", std::to_string(targetVertices), "must be at least 4");
   requireClosed(mesh, "remeshIsotropic");
   const CgalMesh input = detail::toCgalMesh(mesh, "remeshIsotropic");
-  const bool inputEmbedded = crossingPairs(input).empty();
+  // Whether the input crosses itself matters only for a remesh that does, so it is asked then (once).
+  std::optional<bool> inputEmbedded;
   // A closed genus-0 triangulation with V vertices has 2V − 4 faces; equilateral ones of edge L cover √3/4 L² each.
   // The remesher splits edges longer than 4/3 L and collapses those shorter than 4/5 L, and ends with about 15 % more
   // vertices than that count (measured on 27 phantom muscle templates): L is set 7 % longer for it.
@@ -53,7 +55,10 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
     // Its vertices lie on the input's faces, so its chords cut the input's bends: offset back to the input's volume
     // (by a small fraction of an edge; a coarse ellipsoid of 162 vertices lost 3 % of its volume without it).
     offsetToVolume(out, enclosedVolume(mesh), 0.25 * edge);
-    if (inputEmbedded && !crossingPairs(detail::toCgalMesh(out, "remeshIsotropic")).empty()) continue;
+    if (!crossingPairs(detail::toCgalMesh(out, "remeshIsotropic")).empty()) {
+      if (!inputEmbedded) inputEmbedded = crossingPairs(input).empty();
+      if (*inputEmbedded) continue;
+    }
     return out;
   }
   return mesh;
