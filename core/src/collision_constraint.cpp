@@ -102,7 +102,12 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads)
         continue;
       }
       double clearance = 0;
-      const SurfacePoint s = surface_->closest(p, q, reach, hint, &clearance);
+      // Between side tests a vertex that found a partner triangle follows it over the triangles around it (a local
+      // answer: the side test's steps scan the grid, which also sees a nearer part of B the walk cannot); the grid is
+      // scanned too when the walk finds nothing within the reach.
+      SurfacePoint s;
+      if (hint >= 0 && !insideTest) s = surface_->closestAround(p, q, hint, reach);
+      if (s.triangle < 0) s = surface_->closest(p, q, reach, hint, &clearance);
       hint = s.triangle;
       clear.distance = s.triangle < 0 ? clearance : 0.0;
       clear.at = q;

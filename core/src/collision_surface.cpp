@@ -36,6 +36,20 @@ void CollisionSurface::buildTopology() const {
   std::vector<int> fill(vtStart_.begin(), vtStart_.end() - 1);
   for (int t = 0; t < tri_.rows(); ++t)
     for (int k = 0; k < 3; ++k) vtTri_[static_cast<size_t>(fill[static_cast<size_t>(tri_(t, k) - idxLo_)]++)] = t;
+  // Triangle → the triangles sharing a corner with it, itself included, each once.
+  ttStart_.assign(static_cast<size_t>(tri_.rows()) + 1, 0);
+  ttTri_.clear();
+  for (int t = 0; t < tri_.rows(); ++t) {
+    const auto from = static_cast<std::ptrdiff_t>(ttTri_.size());
+    for (int k = 0; k < 3; ++k) {
+      const size_t local = static_cast<size_t>(tri_(t, k) - idxLo_);
+      for (int j = vtStart_[local]; j < vtStart_[local + 1]; ++j) {
+        const int u = vtTri_[static_cast<size_t>(j)];
+        if (std::find(ttTri_.begin() + from, ttTri_.end(), u) == ttTri_.end()) ttTri_.push_back(u);
+      }
+    }
+    ttStart_[static_cast<size_t>(t) + 1] = static_cast<int>(ttTri_.size());
+  }
   // Edge → the two triangles sharing it (an open edge, not expected for closed partners, names its one triangle twice).
   for (int t = 0; t < tri_.rows(); ++t)
     for (int k = 0; k < 3; ++k) {
@@ -86,6 +100,37 @@ SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q
   if (clearance) *clearance = 0;
   if (grid_.empty() || (q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) return {};
   return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_), hint, clearance);
+}
+
+SurfacePoint CollisionSurface::closestAround(const Points& p, const Eigen::Vector3d& q, int around, double maxDistance,
+                                             int maxWalk) const {
+  if (around < 0 || around >= tri_.rows()) return {};
+  std::call_once(topologyBuilt_, [this] { buildTopology(); });
+  int centre = around;
+  for (int walk = 0; walk <= maxWalk; ++walk) {
+    SurfacePoint best;
+    best.distance = std::numeric_limits<double>::infinity();
+    for (int j = ttStart_[static_cast<size_t>(centre)]; j < ttStart_[static_cast<size_t>(centre) + 1]; ++j) {
+      const int t = ttTri_[static_cast<size_t>(j)];
+      Eigen::Vector3d bc;
+      const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri_(t, 0)).transpose(), p.row(tri_(t, 1)).transpose(),
+                                                        p.row(tri_(t, 2)).transpose(), &bc);
+      const double d = (cp - q).norm();
+      if (d < best.distance || (d == best.distance && t < best.triangle)) {
+        best.distance = d;
+        best.point = cp;
+        best.triangle = t;
+        for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
+      }
+    }
+    if (best.triangle != centre) {  // a nearer triangle at the patch's edge: walk on around it
+      centre = best.triangle;
+      continue;
+    }
+    if (!(best.distance < std::min(maxDistance, reach_))) return {};
+    return best;
+  }
+  return {};
 }
 
 Eigen::Vector3d CollisionSurface::faceNormal(const Points& p, int t) const {

@@ -4,8 +4,10 @@
 
 #include <Eigen/Geometry>
 #include <limits>
+#include <map>
 #include <random>
 
+#include "msk/core/collision_surface.h"
 #include "msk/core/error.h"
 #include "msk/core/simplex_mesh.h"
 #include "msk/core/triangle_grid.h"
@@ -140,7 +142,9 @@ TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
 }
 
 // A set that skips the queries of vertices known to be out of reach (their clearance, less their own move and the
-// partner's travel since, beyond the reach) finds at every step exactly the contacts of a set built afresh.
+// partner's travel since, beyond the reach), and whose vertices in contact follow their triangle's neighbours between
+// side tests, finds at every step the contacts of a set built afresh (a convex partner: no nearer part of it lies
+// outside a walk's patch).
 TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
   const msk::TriangleMesh a = msk::makeIcosphere(10, 3, {0, 0, 0}), b = msk::makeIcosphere(10, 3, {21.5, 0, 0});
   const msk::TriangleMesh both = msk::test::joinedMeshes(a, b);  // A's particles first, then B's
@@ -163,13 +167,67 @@ TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
     fresh.detect(p, step % 5 == 0);
     ASSERT_EQ(kept.contacts(), fresh.contacts()) << "step " << step;
     ASSERT_EQ(kept.rowCount(), fresh.rowCount());
+    const Eigen::VectorXd w = Eigen::VectorXd::Ones(p.rows());
     for (int r = 0; r < kept.rowCount(); ++r) {
-      int ik[msk::kMaxRowParticles], jf[msk::kMaxRowParticles];
-      ASSERT_EQ(kept.rowParticles(r, ik), fresh.rowParticles(r, jf));
-      for (int k = 0; k < 4; ++k) EXPECT_EQ(ik[k], jf[k]) << "step " << step << " row " << r;
+      // The same correction on the same particles: of triangles that share the closest point (a corner or an edge)
+      // the walk and the grid may name different ones, whose other corners then weigh nothing.
+      msk::ConstraintRow rk, rf;
+      ASSERT_EQ(kept.row(r, p, w, rk), fresh.row(r, p, w, rf));
+      EXPECT_LT((rk.c - rf.c).norm(), 1e-9) << "step " << step << " row " << r;
+      std::map<int, double> wk, wf;
+      for (int k = 0; k < rk.count; ++k)
+        if (std::abs(rk.grad[k]) > 1e-12) wk[rk.index[k]] = rk.grad[k];
+      for (int k = 0; k < rf.count; ++k)
+        if (std::abs(rf.grad[k]) > 1e-12) wf[rf.index[k]] = rf.grad[k];
+      ASSERT_EQ(wk.size(), wf.size()) << "step " << step << " row " << r;
+      for (const auto& [i, g] : wk) {
+        ASSERT_EQ(wf.count(i), 1u) << "step " << step << " row " << r;
+        EXPECT_NEAR(g, wf[i], 1e-9);
+      }
     }
-    EXPECT_EQ(kept.maxPenetration(p), fresh.maxPenetration(p));
+    EXPECT_NEAR(kept.maxPenetration(p), fresh.maxPenetration(p), 1e-12);
     compared += kept.contacts();
   }
   EXPECT_GT(compared, 500);
+}
+
+// The walk over the triangles around the last one found: on a convex surface it ends at the closest point of the whole
+// surface after the query point has moved; on a surface folded back on itself (two sheets 1 mm apart) it stays on the
+// sheet it started from, which the grid's scan does not.
+TEST(CollisionSurface, WalkFindsTheClosestPointOfAConvexSurfaceAndStaysOnItsSheet) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(10, 3, {0, 0, 0});
+  msk::CollisionSurface s(sphere.faces, 2.0);
+  s.update(sphere.vertices);
+  std::mt19937 rng(4);
+  int walked = 0;
+  for (int i = 0; i < 500; ++i) {
+    const Eigen::Vector3d dir = uniformVector(rng).normalized();
+    const Eigen::Vector3d q0 = (10.6 + 0.2 * i / 500.0) * dir;
+    const msk::SurfacePoint first = s.closest(sphere.vertices, q0, 2.0);
+    ASSERT_GE(first.triangle, 0);
+    const Eigen::Vector3d q = q0 + 0.6 * uniformVector(rng);
+    const msk::SurfacePoint grid = s.closest(sphere.vertices, q, 2.0);
+    const msk::SurfacePoint walk = s.closestAround(sphere.vertices, q, first.triangle, 2.0);
+    ASSERT_EQ(walk.triangle >= 0, grid.triangle >= 0) << "query " << i;
+    if (grid.triangle < 0) continue;
+    EXPECT_NEAR(walk.distance, grid.distance, 1e-12) << "query " << i;
+    EXPECT_LT((walk.point - grid.point).norm(), 1e-9) << "query " << i;
+    walked += walk.triangle != first.triangle;
+  }
+  EXPECT_GT(walked, 100);  // the walk left its first triangle
+
+  // A flat ellipsoid, 40 mm wide and 1 mm thick at its centre: a point 0.3 mm above its top that found the top keeps
+  // it after moving 1 mm down (inside, now nearer the bottom).
+  msk::TriangleMesh slab = msk::makeIcosphere(20, 4);
+  slab.vertices.col(2) *= 0.5 / 20;
+  msk::CollisionSurface t(slab.faces, 2.0);
+  t.update(slab.vertices);
+  const msk::SurfacePoint top = t.closest(slab.vertices, Eigen::Vector3d(0.3, 0.2, 0.8), 2.0);
+  ASSERT_GE(top.triangle, 0);
+  EXPECT_GT(top.point.z(), 0.45);
+  const Eigen::Vector3d below(0.3, 0.2, -0.2);
+  EXPECT_LT(t.closest(slab.vertices, below, 2.0).point.z(), -0.45);
+  const msk::SurfacePoint kept = t.closestAround(slab.vertices, below, top.triangle, 2.0);
+  ASSERT_GE(kept.triangle, 0);
+  EXPECT_GT(kept.point.z(), 0.45);
 }

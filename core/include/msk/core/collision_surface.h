@@ -27,6 +27,13 @@ class CollisionSurface {
   /// (optional): when nothing is found by a scan of the grid, a distance no triangle is nearer than, else 0.
   SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint = -1,
                        double* clearance = nullptr) const;
+  /// The closest point to `q` on the triangles around `around` (those sharing a corner with it), walked on: while the
+  /// closest of them is another triangle, the triangles around that one, at most `maxWalk` times. A local answer for a
+  /// point that found `around` in a recent query and has moved little since: another part of the surface nearer than
+  /// the walk's patch is not seen. Nothing (triangle −1) if the walk ends farther than min(`maxDistance`, reach()) or
+  /// does not settle. Of equally close triangles the lower index wins. Thread-safe.
+  SurfacePoint closestAround(const Points& p, const Eigen::Vector3d& q, int around, double maxDistance,
+                             int maxWalk = 3) const;
   /// The sum over the updates of the largest move of any of the surface's particles since the one before: the
   /// difference of two readings bounds how far any point of the surface has moved in between, mm.
   double travelled() const { return travelled_; }
@@ -55,6 +62,7 @@ class CollisionSurface {
   void buildTopology() const;
   mutable std::once_flag topologyBuilt_;
   mutable std::vector<int> vtStart_, vtTri_;  ///< vertex → incident triangles (CSR, vertex i at i − idxLo_)
+  mutable std::vector<int> ttStart_, ttTri_;  ///< triangle → the triangles sharing a corner with it, itself too (CSR)
   mutable std::unordered_map<long long, std::pair<int, int>> edgeFaces_;  ///< edge (sorted corner pair) → its two
                                                                           ///< triangles
   TriangleGrid grid_;                                ///< over the triangles at the positions of the last update()
