@@ -79,7 +79,7 @@ void CollisionConstraints::resetReference() {
   std::fill(dref_.begin(), dref_.end(), std::numeric_limits<double>::quiet_NaN());
 }
 
-void CollisionConstraints::detect(const Points& p, bool insideTest, int threads) {
+void CollisionConstraints::detect(const Points& p, bool insideTest, int threads, bool followContacts) {
   contacts_.clear();
   rowLayoutChanged();
   if (surface_->triangles().rows() == 0 || count_ == 0) return;
@@ -106,7 +106,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads)
       // answer: the side test's steps scan the grid, which also sees a nearer part of B the walk cannot); the grid is
       // scanned too when the walk finds nothing within the reach.
       SurfacePoint s;
-      if (hint >= 0 && !insideTest) s = surface_->closestAround(p, q, hint, reach);
+      if (hint >= 0 && followContacts && !insideTest) s = surface_->closestAround(p, q, hint, reach);
       if (s.triangle < 0) s = surface_->closest(p, q, reach, hint, &clearance);
       hint = s.triangle;
       clear.distance = s.triangle < 0 ? clearance : 0.0;

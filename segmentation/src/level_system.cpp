@@ -9,11 +9,12 @@ namespace msk::detail {
 
 namespace {
 
-/// Detects the contacts of every collision set at positions `p`. The sets only read the positions and their shared
-/// partner surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all
-/// cores) with the same result as one.
+/// Detects the contacts of every collision set at positions `p` (a step of the evolution: between side tests the
+/// vertices in contact follow their partner triangles). The sets only read the positions and their shared partner
+/// surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all cores) with
+/// the same result as one.
 void detectAll(std::vector<std::unique_ptr<CollisionConstraints>>& sets, const Points& p, bool sideTest, int threads) {
-  parallelEach(sets.size(), threads, [&](size_t k) { sets[k]->detect(p, sideTest); });
+  parallelEach(sets.size(), threads, [&](size_t k) { sets[k]->detect(p, sideTest, 1, true); });
 }
 
 }  // namespace

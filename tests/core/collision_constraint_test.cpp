@@ -162,7 +162,7 @@ TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
         p.row(v) += Eigen::RowVector3d(dx, 0, 0) + 0.05 * uniformVector(rng).transpose();
     }
     for (int v = 0; v < na; ++v) p.row(v) += 0.08 * uniformVector(rng).transpose();
-    kept.detect(p, step % 5 == 0);
+    kept.detect(p, step % 5 == 0, 1, true);
     msk::CollisionConstraints fresh(0, na, tb, 0.2, 1.0, 0.0);
     fresh.detect(p, step % 5 == 0);
     ASSERT_EQ(kept.contacts(), fresh.contacts()) << "step " << step;

@@ -52,8 +52,10 @@ class CollisionConstraints : public ConstraintSet {
   /// the side comes from B's winding number (right even where B folds); without it every vertex is taken to be
   /// outside B, which is exact when the positions are collision-free and costs nothing (use the test where overlaps
   /// may already exist: first step of a level, clean-up sweeps, reports). `threads` > 1 splits A's vertices over that
-  /// many threads (sets of at least 1024 vertices a thread), with the same result.
-  void detect(const Points& p, bool insideTest = true, int threads = 1);
+  /// many threads (sets of at least 1024 vertices a thread), with the same result. With `followContacts` and without
+  /// `insideTest`, a vertex that found a triangle of B at the last detection looks for its closest point by walking
+  /// from that triangle (CollisionSurface::closestAround(), a local answer) instead of scanning B's grid.
+  void detect(const Points& p, bool insideTest = true, int threads = 1, bool followContacts = false);
   /// One row per contact of the last detect(): position mode with sequential resolution, the contact's position
   /// change toward the set's target; velocity and acceleration modes, the spring position correction of a contact
   /// whose vertex is more than response().positionBeyondMm inside the partner (none when that is +inf); position mode
