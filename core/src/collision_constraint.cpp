@@ -87,6 +87,7 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads,
   const double reach = gap_ + proximity_;
   const double travelled = surface_->travelled();
   const bool reference = response_.target == CollisionTarget::Reference;
+  const bool walk = followContacts && !insideTest && surface_->walkPays();
   // The vertices in contiguous ranges, one per thread: each vertex's query reads the positions and B's grid and writes
   // only its own slots, and the ranges' contacts are joined in vertex order, so the result is the same for any count.
   auto examine = [&](int begin, int end, std::vector<Contact>& found) {
@@ -102,11 +103,11 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads,
         continue;
       }
       double clearance = 0;
-      // Between side tests a vertex that found a partner triangle follows it over the triangles around it (a local
-      // answer: the side test's steps scan the grid, which also sees a nearer part of B the walk cannot); the grid is
-      // scanned too when the walk finds nothing within the reach.
+      // Between side tests a vertex that found a partner triangle follows it over the triangles around it where B's
+      // triangles are small against the reach (a local answer: the side test's steps scan the grid, which also sees a
+      // nearer part of B the walk cannot); the grid is scanned too when the walk finds nothing within the reach.
       SurfacePoint s;
-      if (hint >= 0 && followContacts && !insideTest) s = surface_->closestAround(p, q, hint, reach);
+      if (hint >= 0 && walk) s = surface_->closestAround(p, q, hint, reach);
       if (s.triangle < 0) s = surface_->closest(p, q, reach, hint, &clearance);
       hint = s.triangle;
       clear.distance = s.triangle < 0 ? clearance : 0.0;

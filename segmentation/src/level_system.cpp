@@ -9,8 +9,8 @@ namespace msk::detail {
 
 namespace {
 
-/// Detects the contacts of every collision set at positions `p` (a step of the evolution: between side tests the
-/// vertices in contact follow their partner triangles). The sets only read the positions and their shared partner
+/// Detects the contacts of every collision set at positions `p` (between side tests the vertices in contact may follow
+/// their partner triangles: CollisionConstraints::detect()). The sets only read the positions and their shared partner
 /// surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all cores) with
 /// the same result as one.
 void detectAll(std::vector<std::unique_ptr<CollisionConstraints>>& sets, const Points& p, bool sideTest, int threads) {
@@ -130,7 +130,7 @@ void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweep
       // keeps it if the partner has not moved).
       const CollisionPair& pair = scene.collisions[k / 2];
       surfaces_.at(static_cast<size_t>(k % 2 == 0 ? pair.b : pair.a))->update(p);
-      collide_[k]->detect(p, sweep == 0, threads);
+      collide_[k]->detect(p, sweep == 0, threads, true);
       corrected += collide_[k]->projectPositions(p, w);
     }
     if (global_.empty()) {
@@ -140,7 +140,7 @@ void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweep
     }
     for (auto& kv : surfaces_) kv.second->update(p);
     for (auto& c : collide_)
-      if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0, threads);
+      if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0, threads, true);
     for (auto& kv : global_) kv.second->projectPositions(p, w);
   }
 }

@@ -34,6 +34,9 @@ class CollisionSurface {
   /// does not settle. Of equally close triangles the lower index wins. Thread-safe.
   SurfacePoint closestAround(const Points& p, const Eigen::Vector3d& q, int around, double maxDistance,
                              int maxWalk = 3) const;
+  /// Whether a walk (closestAround()) is cheaper than a scan of the grid: the triangles are less than half the reach
+  /// across (mean edge at the last update()), so that each of the cells a scan visits (the reach wide) lists many.
+  bool walkPays() const { return meanEdge_ > 0 && meanEdge_ < 0.5 * reach_; }
   /// The sum over the updates of the largest move of any of the surface's particles since the one before: the
   /// difference of two readings bounds how far any point of the surface has moved in between, mm.
   double travelled() const { return travelled_; }
