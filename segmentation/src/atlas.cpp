@@ -763,8 +763,8 @@ std::vector<MuscleOnBone> musclesOnLongBones(const Scene& scene) {
 
 /// Each object's start among several subjects' (AtlasStarts::Each, an atlas of several): the start whose run reached
 /// the highest profile match for it (the first start where no run has one, e.g. the gradient force, and on ties).
-std::vector<size_t> bestStarts(const Atlas& atlas, const std::vector<AtlasStartRun>& runs) {
-  std::vector<size_t> chosen(atlas.scene.objects.size(), 0);
+std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs) {
+  std::vector<size_t> chosen(runs.front().profileMatch.size(), 0);
   for (size_t i = 0; i < chosen.size(); ++i) {
     double best = -std::numeric_limits<double>::infinity();
     for (size_t r = 0; r < runs.size(); ++r) {
@@ -890,7 +890,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       if (!finalRun && best) out.result = std::move(r);
     }
   }
-  out.chosen = finalRun ? bestStarts(atlas, out.starts) : std::vector<size_t>(n, kept);
+  out.chosen = finalRun ? bestStarts(out.starts) : std::vector<size_t>(n, kept);
   out.placement = out.starts[kept].placement;
   out.placement.seconds = 0;
   for (const AtlasStartRun& r : out.starts) out.placement.seconds += r.placement.seconds;

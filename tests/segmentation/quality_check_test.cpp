@@ -61,6 +61,14 @@ ObjectQuality onAnEdge() {
   return q;
 }
 
+/// Judges `q` and expects it doubtful for one reason, which names `word`.
+void expectDoubtfulFor(ObjectQuality& q, const std::string& word) {
+  msk::judgeQuality(q);
+  EXPECT_EQ(q.status, QualityStatus::Doubtful);
+  ASSERT_EQ(q.reasons.size(), 1u);
+  EXPECT_NE(q.reasons[0].find(word), std::string::npos) << q.reasons[0];
+}
+
 }  // namespace
 
 // A surface on the ball's boundary is on an edge of its polarity everywhere, with a strong contrast; the same surface
@@ -222,10 +230,7 @@ TEST(QualityCheck, ProfileMatchIsJudgedWhereMeasured) {
   msk::judgeQuality(q);
   EXPECT_EQ(q.status, QualityStatus::Ok);
   q.profileMatch = 0.1;
-  msk::judgeQuality(q);
-  EXPECT_EQ(q.status, QualityStatus::Doubtful);
-  ASSERT_EQ(q.reasons.size(), 1u);
-  EXPECT_NE(q.reasons[0].find("profiles"), std::string::npos) << q.reasons[0];
+  ASSERT_NO_FATAL_FAILURE(expectDoubtfulFor(q, "profiles"));
 }
 
 // A written surface whose faces cross each other is not a valid closed surface: doubtful, whatever its other figures.
@@ -235,9 +240,6 @@ TEST(QualityCheck, CrossingFacesAreDoubtful) {
   msk::judgeQuality(q);
   EXPECT_EQ(q.status, QualityStatus::Ok);
   q.crossingFacePairs = 15;
-  msk::judgeQuality(q);
-  EXPECT_EQ(q.status, QualityStatus::Doubtful);
-  ASSERT_EQ(q.reasons.size(), 1u);
-  EXPECT_NE(q.reasons[0].find("crossing"), std::string::npos) << q.reasons[0];
+  ASSERT_NO_FATAL_FAILURE(expectDoubtfulFor(q, "crossing"));
   EXPECT_NE(q.reasons[0].find("15"), std::string::npos) << q.reasons[0];
 }
