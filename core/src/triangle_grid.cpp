@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "msk/core/simplex_mesh.h"
@@ -49,27 +50,29 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
       item.hi[a] = static_cast<float>(hi[a] + (std::abs(hi[a]) + 1) * 1e-6);
     }
     item.triangle = t;
+    item.past = 0;
     const Eigen::Vector3i first = cellOf(lo);
     firstCells_[static_cast<size_t>(t)] = {first[0], first[1], first[2]};
     lastCells_[static_cast<size_t>(t)] = cellOf(hi);
   }
+  // visit(cell index, the axes along which the cell is past the box's first cell, as bits 0–2).
   auto forCells = [&](int t, auto&& visit) {
     const std::array<int, 3>& a = firstCells_[static_cast<size_t>(t)];
     const Eigen::Vector3i& b = lastCells_[static_cast<size_t>(t)];
     for (int z = a[2]; z <= b[2]; ++z)
       for (int y = a[1]; y <= b[1]; ++y)
-        for (int x = a[0]; x <= b[0]; ++x) visit(cellIndex(x, y, z));
+        for (int x = a[0]; x <= b[0]; ++x)
+          visit(cellIndex(x, y, z), static_cast<std::uint8_t>((x > a[0]) | (y > a[1]) << 1 | (z > a[2]) << 2));
   };
-  for (int t = 0; t < triangles_; ++t) forCells(t, [&](size_t ci) { ++start_[ci + 2]; });
+  for (int t = 0; t < triangles_; ++t) forCells(t, [&](size_t ci, std::uint8_t) { ++start_[ci + 2]; });
   for (size_t i = 2; i < cells + 2; ++i) start_[i] += start_[i - 1];
   // Resized, not cleared: every item is written below.
   items_.resize(static_cast<size_t>(start_[cells + 1]));
-  itemCells_.resize(items_.size());
   for (int t = 0; t < triangles_; ++t)
-    forCells(t, [&](size_t ci) {
-      const size_t k = static_cast<size_t>(start_[ci + 1]++);
-      items_[k] = boxes[static_cast<size_t>(t)];
-      itemCells_[k] = firstCells_[static_cast<size_t>(t)];
+    forCells(t, [&](size_t ci, std::uint8_t past) {
+      CellItem& item = items_[static_cast<size_t>(start_[ci + 1]++)];
+      item = boxes[static_cast<size_t>(t)];
+      item.past = past;
     });
 }
 
@@ -118,14 +121,14 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {
         const size_t ci = cellIndex(x, y, z);
+        // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does
+        // not depend on the order: the closest wins, then the lowest key). Along each axis that first cell is the
+        // box's first cell or the first scanned, so an entry is passed over where it is past its box's first cell
+        // along an axis along which this cell is not the first scanned.
+        const auto firstScanned = static_cast<std::uint8_t>((x == from[0]) | (y == from[1]) << 1 | (z == from[2]) << 2);
         for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
-          // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does
-          // not depend on the order: the closest wins, then the lowest key).
-          const std::array<int, 3>& lowest = itemCells_[static_cast<size_t>(k)];
-          if (std::max(lowest[0], from[0]) != x || std::max(lowest[1], from[1]) != y ||
-              std::max(lowest[2], from[2]) != z)
-            continue;
           const CellItem& item = items_[static_cast<size_t>(k)];
+          if (item.past & ~firstScanned) continue;
           // Cheap rejection: the triangle's box is farther than the best found (with a margin for rounding, so that
           // a triangle exactly as close, sharing the best one's vertex, always reaches the comparison of keys).
           double boxSq = 0;
@@ -146,7 +149,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
             nearestSq = std::min(nearestSq, d * d);
             continue;
           }
-          const size_t key = keyOf(lowest, t);
+          const size_t key = keyOf(firstCells_[static_cast<size_t>(t)], t);
           if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
           best.distance = d;
           best.point = cp;

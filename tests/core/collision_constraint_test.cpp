@@ -141,6 +141,65 @@ TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
   EXPECT_GT(empty, 1000);
 }
 
+// A grid query examines each triangle once however many scanned cells list it, and its answer, ties included, does
+// not depend on the hint: points just off the mesh's vertices (whose incident triangles are equally close) and random
+// points near the surface, against the exact closest distance by brute force, with and without each incident
+// triangle as the hint.
+TEST(TriangleGrid, TiesAndHintsGiveOneAnswer) {
+  msk::TriangleMesh m = msk::makeIcosphere(10, 3, {2, 1, -3});
+  std::mt19937 rng(11);
+  for (int v = 0; v < m.vertexCount(); ++v) m.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  const double radius = 1.5;
+  msk::TriangleGrid grid;
+  msk::TriangleGrid::Layout layout;
+  layout.lo = (m.vertices.colwise().minCoeff().array() - radius).transpose();
+  layout.cell = 1.5;
+  layout.dims =
+      ((m.vertices.colwise().maxCoeff().transpose() - layout.lo).array() / layout.cell + 2).ceil().cast<int>();
+  grid.build(layout, m.vertices, m.faces);
+  std::vector<std::vector<int>> incident(static_cast<size_t>(m.vertexCount()));
+  for (int t = 0; t < m.faceCount(); ++t)
+    for (int k = 0; k < 3; ++k) incident[static_cast<size_t>(m.faces(t, k))].push_back(t);
+  std::uniform_real_distribution<double> u(-0.8, 0.8);
+  int ties = 0;
+  for (int v = 0; v < m.vertexCount(); ++v) {
+    const Eigen::Vector3d corner = m.vertices.row(v).transpose();
+    const Eigen::Vector3d outward = (corner - Eigen::Vector3d(2, 1, -3)).normalized();
+    for (const Eigen::Vector3d& q :
+         {Eigen::Vector3d(corner + 0.4 * outward), Eigen::Vector3d(corner + Eigen::Vector3d(u(rng), u(rng), u(rng)))}) {
+      double nearest = std::numeric_limits<double>::infinity();
+      int closeOnes = 0;
+      for (int t = 0; t < m.faceCount(); ++t) {
+        const double d = (msk::closestPointOnTriangle(q, m.vertices.row(m.faces(t, 0)).transpose(),
+                                                      m.vertices.row(m.faces(t, 1)).transpose(),
+                                                      m.vertices.row(m.faces(t, 2)).transpose()) -
+                          q)
+                             .norm();
+        if (d < nearest) {
+          nearest = d;
+          closeOnes = 1;
+        } else if (d == nearest) {
+          ++closeOnes;
+        }
+      }
+      const msk::SurfacePoint plain = grid.closestWithin(m.vertices, m.faces, q, radius);
+      if (!(nearest < radius)) {
+        EXPECT_LT(plain.triangle, 0);
+        continue;
+      }
+      ASSERT_GE(plain.triangle, 0) << "vertex " << v;
+      EXPECT_EQ(plain.distance, nearest) << "vertex " << v;
+      ties += closeOnes > 1;
+      for (int hint : incident[static_cast<size_t>(v)]) {
+        const msk::SurfacePoint hinted = grid.closestWithin(m.vertices, m.faces, q, radius, hint);
+        EXPECT_EQ(hinted.triangle, plain.triangle) << "vertex " << v << " hint " << hint;
+        EXPECT_EQ(hinted.distance, plain.distance);
+      }
+    }
+  }
+  EXPECT_GT(ties, m.vertexCount() / 2) << "the points off the vertices should meet equally close triangles";
+}
+
 // A set that skips the queries of vertices known to be out of reach (their clearance, less their own move and the
 // partner's travel since, beyond the reach), and whose vertices in contact follow their triangle's neighbours between
 // side tests, finds at every step the contacts of a set built afresh (a convex partner: no nearer part of it lies

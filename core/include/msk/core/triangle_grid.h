@@ -3,6 +3,7 @@
 /// collision partners (a bounded query, rebuilt every step) and of surface transfers (an unbounded query).
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "msk/core/triangle_mesh.h"
@@ -61,19 +62,18 @@ class TriangleGrid {
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
   /// A triangle's entry in a cell's list: its bounding box in floats rounded outward (a box the exact one lies in, so
-  /// that a rejection by it is exact) and its index.
+  /// that a rejection by it is exact), its index, and the axes along which the cell is past the box's first cell (bits
+  /// 0–2: x, y, z), from which a query tells whether an earlier cell of its scan listed the triangle too.
   struct CellItem {
     float lo[3], hi[3];
     int triangle;
+    std::uint8_t past;
   };
   Layout layout_;
   int triangles_ = 0;
   std::vector<int> start_;       ///< cell ci → its items, items_[start_[ci], start_[ci + 1]) (CSR; one spare entry)
   std::vector<CellItem> items_;  ///< each cell's triangles, by index
-  /// The cell of the lowest corner of each item's triangle's box (its first cell in every scan), apart: a query's test
-  /// of whether it meets a triangle in its first scanned cell reads only these
-  std::vector<std::array<int, 3>> itemCells_;
-  std::vector<CellItem> boxes_;                 ///< build(): each triangle's box (kept to reuse its memory)
+  std::vector<CellItem> boxes_;  ///< build(): each triangle's box (kept to reuse its memory)
   std::vector<std::array<int, 3>> firstCells_;  ///< each triangle's box's lowest cell
   std::vector<Eigen::Vector3i> lastCells_;      ///< build(): the cell of each box's highest corner
   mutable std::vector<int> seen_;               ///< closest(): the query that last examined each triangle
