@@ -4,6 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "msk/core/simplex_mesh.h"
 
@@ -31,7 +34,7 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   triangles_ = static_cast<int>(tri.rows());
   const size_t cells =
       static_cast<size_t>(layout.dims[0]) * static_cast<size_t>(layout.dims[1]) * static_cast<size_t>(layout.dims[2]);
-  // Cell ci's items are items_[start_[ci], start_[ci + 1]); the counts go two places up so that the prefix sums leave
+  // Cell ci's entries are [start_[ci], start_[ci + 1]); the counts go two places up so that the prefix sums leave
   // start_[ci + 1] at the cell's first item, the fill's cursor, which the fill then moves on to the next cell's first.
   start_.assign(cells + 2, 0);
   seen_.clear();  // closest() sizes it on first use
@@ -50,7 +53,6 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
       item.hi[a] = static_cast<float>(hi[a] + (std::abs(hi[a]) + 1) * 1e-6);
     }
     item.triangle = t;
-    item.past = 0;
     const Eigen::Vector3i first = cellOf(lo);
     firstCells_[static_cast<size_t>(t)] = {first[0], first[1], first[2]};
     lastCells_[static_cast<size_t>(t)] = cellOf(hi);
@@ -66,13 +68,25 @@ void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles&
   };
   for (int t = 0; t < triangles_; ++t) forCells(t, [&](size_t ci, std::uint8_t) { ++start_[ci + 2]; });
   for (size_t i = 2; i < cells + 2; ++i) start_[i] += start_[i - 1];
-  // Resized, not cleared: every item is written below.
-  items_.resize(static_cast<size_t>(start_[cells + 1]));
+  // Resized, not cleared: every entry is written below (and the padding after the last is read by the 4-wide box
+  // test, whose lanes past a cell's end are discarded).
+  const size_t entries = static_cast<size_t>(start_[cells + 1]);
+  for (int a = 0; a < 3; ++a) {
+    entryLo_[a].resize(entries + kPad);
+    entryHi_[a].resize(entries + kPad);
+  }
+  entryTriangle_.resize(entries);
+  entryPast_.resize(entries);
   for (int t = 0; t < triangles_; ++t)
     forCells(t, [&](size_t ci, std::uint8_t past) {
-      CellItem& item = items_[static_cast<size_t>(start_[ci + 1]++)];
-      item = boxes[static_cast<size_t>(t)];
-      item.past = past;
+      const size_t k = static_cast<size_t>(start_[ci + 1]++);
+      const CellItem& box = boxes[static_cast<size_t>(t)];
+      for (int a = 0; a < 3; ++a) {
+        entryLo_[a][k] = box.lo[a];
+        entryHi_[a][k] = box.hi[a];
+      }
+      entryTriangle_[k] = t;
+      entryPast_[k] = past;
     });
 }
 
@@ -117,47 +131,99 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     to[a] = std::min(clampedCell(u[a] + padCells, a), c[a] + 1);
   }
   double nearestSq = std::numeric_limits<double>::infinity();  // of the triangles examined and passed over
+  // The entry at k: passed over if its triangle was met in an earlier scanned cell; else its box is tested in double
+  // (with a margin for rounding, so that a triangle exactly as close, sharing the best one's vertex, always reaches
+  // the comparison of keys), then its closest point.
+  auto examine = [&](int k, std::uint8_t firstScanned) {
+    const size_t e = static_cast<size_t>(k);
+    if (entryPast_[e] & ~firstScanned) return;
+    double boxSq = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double out = std::max(std::max(entryLo_[a][e] - q[a], q[a] - entryHi_[a][e]), 0.0);
+      boxSq += out * out;
+    }
+    if (boxSq > best.distance * best.distance * (1 + 1e-12)) {
+      nearestSq = std::min(nearestSq, boxSq);
+      return;
+    }
+    const int t = entryTriangle_[e];
+    Eigen::Vector3d bc;
+    const Eigen::Vector3d cp = closestPointOnTriangle(q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(),
+                                                      p.row(tri(t, 2)).transpose(), &bc);
+    const double d = (cp - q).norm();
+    if (!(d <= best.distance)) {
+      nearestSq = std::min(nearestSq, d * d);
+      return;
+    }
+    const size_t key = keyOf(firstCells_[static_cast<size_t>(t)], t);
+    if (d == best.distance && (best.triangle < 0 || key >= bestKey)) return;
+    best.distance = d;
+    best.point = cp;
+    best.triangle = t;
+    bestKey = key;
+    for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
+  };
+  // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does not
+  // depend on the order: the closest wins, then the lowest key). Along each axis that first cell is the box's first
+  // cell or the first scanned, so an entry is passed over where it is past its box's first cell along an axis along
+  // which this cell is not the first scanned.
+#if defined(__SSE2__)
+  // Four entries' boxes at a time in float (SSE2, part of x86-64): an entry whose float box distance exceeds the best
+  // distance plus `slack` (far above that distance's rounding error: q's rounding to float, 2^-24 of its coordinates,
+  // and a few roundings of the distance) is passed over without the tests above; the least such distance, less the
+  // slack, bounds those entries for the clearance.
+  const double slack = 1e-6 * (1.0 + q.cwiseAbs().maxCoeff() + radius);
+  const __m128 qx = _mm_set1_ps(static_cast<float>(q[0])), qy = _mm_set1_ps(static_cast<float>(q[1])),
+               qz = _mm_set1_ps(static_cast<float>(q[2])), zero = _mm_setzero_ps();
+  const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
+  const __m128i laneIndex = _mm_set_epi32(3, 2, 1, 0);
+  __m128 leastPassed = inf;  // per lane: the least float box distance² of the entries passed over
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {
         const size_t ci = cellIndex(x, y, z);
-        // A triangle listed in several of the scanned cells is examined once, in the first of them (the result does
-        // not depend on the order: the closest wins, then the lowest key). Along each axis that first cell is the
-        // box's first cell or the first scanned, so an entry is passed over where it is past its box's first cell
-        // along an axis along which this cell is not the first scanned.
         const auto firstScanned = static_cast<std::uint8_t>((x == from[0]) | (y == from[1]) << 1 | (z == from[2]) << 2);
-        for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
-          const CellItem& item = items_[static_cast<size_t>(k)];
-          if (item.past & ~firstScanned) continue;
-          // Cheap rejection: the triangle's box is farther than the best found (with a margin for rounding, so that
-          // a triangle exactly as close, sharing the best one's vertex, always reaches the comparison of keys).
-          double boxSq = 0;
-          for (int a = 0; a < 3; ++a) {
-            const double out = std::max(std::max(item.lo[a] - q[a], q[a] - item.hi[a]), 0.0);
-            boxSq += out * out;
+        const int end = start_[ci + 1];
+        for (int k = start_[ci]; k < end; k += 4) {
+          const double reach = best.distance + slack;
+          const __m128 limit =
+              _mm_set1_ps(std::nextafter(static_cast<float>(reach * reach), std::numeric_limits<float>::infinity()));
+          const size_t e = static_cast<size_t>(k);
+          auto outsideSq = [&](int a, __m128 qa) {
+            const __m128 lo = _mm_loadu_ps(&entryLo_[a][e]), hi = _mm_loadu_ps(&entryHi_[a][e]);
+            const __m128 out = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, qa), _mm_sub_ps(qa, hi)), zero);
+            return _mm_mul_ps(out, out);
+          };
+          const __m128 sq = _mm_add_ps(_mm_add_ps(outsideSq(0, qx), outsideSq(1, qy)), outsideSq(2, qz));
+          const __m128 near = _mm_cmple_ps(sq, limit);
+          const int lanes = std::min(4, end - k);
+          const int valid = (1 << lanes) - 1;
+          const int hits = _mm_movemask_ps(near) & valid;
+          if (hits != valid) {  // the valid lanes not near into the running least, the others as infinite
+            const __m128 inCell = _mm_castsi128_ps(_mm_cmplt_epi32(laneIndex, _mm_set1_epi32(lanes)));
+            const __m128 passed = _mm_andnot_ps(near, inCell);
+            leastPassed = _mm_min_ps(leastPassed, _mm_or_ps(_mm_and_ps(passed, sq), _mm_andnot_ps(passed, inf)));
           }
-          if (boxSq > best.distance * best.distance * (1 + 1e-12)) {
-            nearestSq = std::min(nearestSq, boxSq);
-            continue;
-          }
-          const int t = item.triangle;
-          Eigen::Vector3d bc;
-          const Eigen::Vector3d cp = closestPointOnTriangle(
-              q, p.row(tri(t, 0)).transpose(), p.row(tri(t, 1)).transpose(), p.row(tri(t, 2)).transpose(), &bc);
-          const double d = (cp - q).norm();
-          if (!(d <= best.distance)) {
-            nearestSq = std::min(nearestSq, d * d);
-            continue;
-          }
-          const size_t key = keyOf(firstCells_[static_cast<size_t>(t)], t);
-          if (d == best.distance && (best.triangle < 0 || key >= bestKey)) continue;
-          best.distance = d;
-          best.point = cp;
-          best.triangle = t;
-          bestKey = key;
-          for (int i = 0; i < 3; ++i) best.bary[i] = bc[i];
+          for (int lane = 0; lane < lanes; ++lane)
+            if (hits >> lane & 1) examine(k + lane, firstScanned);
         }
       }
+  float least[4];
+  _mm_storeu_ps(least, leastPassed);
+  const double leastSq = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
+  if (leastSq < std::numeric_limits<float>::infinity()) {
+    const double bound = std::max(0.0, std::sqrt(leastSq) - slack);
+    nearestSq = std::min(nearestSq, bound * bound);
+  }
+#else
+  for (int z = from[2]; z <= to[2]; ++z)
+    for (int y = from[1]; y <= to[1]; ++y)
+      for (int x = from[0]; x <= to[0]; ++x) {
+        const size_t ci = cellIndex(x, y, z);
+        const auto firstScanned = static_cast<std::uint8_t>((x == from[0]) | (y == from[1]) << 1 | (z == from[2]) << 2);
+        for (int k = start_[ci]; k < start_[ci + 1]; ++k) examine(k, firstScanned);
+      }
+#endif
   if (clearance && best.triangle < 0) {
     // A triangle listed in none of the scanned cells has its box outside the block of them (a border cell reaches to
     // infinity outward); every listed one was examined, its box or its closest point at nearestSq or farther.
@@ -206,7 +272,7 @@ SurfacePoint TriangleGrid::closest(const Points& p, const Triangles& tri, const 
           if (cellDistance2(q, x, y, z) >= best2) continue;
           const size_t ci = cellIndex(x, y, z);
           for (int k = start_[ci]; k < start_[ci + 1]; ++k) {
-            const int t = items_[static_cast<size_t>(k)].triangle;
+            const int t = entryTriangle_[static_cast<size_t>(k)];
             if (seen_[static_cast<size_t>(t)] == id) continue;
             seen_[static_cast<size_t>(t)] = id;
             Eigen::Vector3d bary;

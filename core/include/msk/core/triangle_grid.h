@@ -34,7 +34,7 @@ class TriangleGrid {
   /// Lists every triangle of `tri` (rows of `p`) in the cells of `layout` its bounding box at `p` touches.
   void build(const Layout& layout, const Points& p, const Triangles& tri);
   /// Whether build() listed no triangle.
-  bool empty() const { return items_.empty(); }
+  bool empty() const { return entryTriangle_.empty(); }
   /// The layout of the last build().
   const Layout& layout() const { return layout_; }
 
@@ -61,19 +61,23 @@ class TriangleGrid {
   size_t cellIndex(int x, int y, int z) const;
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
-  /// A triangle's entry in a cell's list: its bounding box in floats rounded outward (a box the exact one lies in, so
-  /// that a rejection by it is exact), its index, and the axes along which the cell is past the box's first cell (bits
-  /// 0–2: x, y, z), from which a query tells whether an earlier cell of its scan listed the triangle too.
+  /// A triangle's bounding box in floats rounded outward (a box the exact one lies in, so that a rejection by it is
+  /// exact), and its index.
   struct CellItem {
     float lo[3], hi[3];
     int triangle;
-    std::uint8_t past;
   };
+  static constexpr size_t kPad = 4;  ///< floats after the last entry's box, read (and discarded) by 4-wide tests
   Layout layout_;
   int triangles_ = 0;
-  std::vector<int> start_;       ///< cell ci → its items, items_[start_[ci], start_[ci + 1]) (CSR; one spare entry)
-  std::vector<CellItem> items_;  ///< each cell's triangles, by index
-  std::vector<CellItem> boxes_;  ///< build(): each triangle's box (kept to reuse its memory)
+  std::vector<int> start_;  ///< cell ci → its entries [start_[ci], start_[ci + 1]) (CSR; one spare entry)
+  /// The cells' entries, each cell's by triangle index, in columns: the triangle's box, the triangle, and the axes
+  /// along which the entry's cell is past the box's first cell (bits 0–2: x, y, z), from which a query tells whether
+  /// an earlier cell of its scan listed the triangle too.
+  std::vector<float> entryLo_[3], entryHi_[3];
+  std::vector<int> entryTriangle_;
+  std::vector<std::uint8_t> entryPast_;
+  std::vector<CellItem> boxes_;                 ///< build(): each triangle's box (kept to reuse its memory)
   std::vector<std::array<int, 3>> firstCells_;  ///< each triangle's box's lowest cell
   std::vector<Eigen::Vector3i> lastCells_;      ///< build(): the cell of each box's highest corner
   mutable std::vector<int> seen_;               ///< closest(): the query that last examined each triangle
