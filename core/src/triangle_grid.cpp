@@ -178,12 +178,14 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
   const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
   const __m128i laneIndex = _mm_set_epi32(3, 2, 1, 0);
   __m128 leastPassed = inf;  // per lane: the least float box distance² of the entries passed over
+#endif
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
       for (int x = from[0]; x <= to[0]; ++x) {
         const size_t ci = cellIndex(x, y, z);
         const auto firstScanned = static_cast<std::uint8_t>((x == from[0]) | (y == from[1]) << 1 | (z == from[2]) << 2);
         const int end = start_[ci + 1];
+#if defined(__SSE2__)
         for (int k = start_[ci]; k < end; k += 4) {
           const double reach = best.distance + slack;
           const __m128 limit =
@@ -207,7 +209,11 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
           for (int lane = 0; lane < lanes; ++lane)
             if (hits >> lane & 1) examine(k + lane, firstScanned);
         }
+#else
+        for (int k = start_[ci]; k < end; ++k) examine(k, firstScanned);
+#endif
       }
+#if defined(__SSE2__)
   float least[4];
   _mm_storeu_ps(least, leastPassed);
   const double leastSq = std::min(std::min(least[0], least[1]), std::min(least[2], least[3]));
@@ -215,14 +221,6 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     const double bound = std::max(0.0, std::sqrt(leastSq) - slack);
     nearestSq = std::min(nearestSq, bound * bound);
   }
-#else
-  for (int z = from[2]; z <= to[2]; ++z)
-    for (int y = from[1]; y <= to[1]; ++y)
-      for (int x = from[0]; x <= to[0]; ++x) {
-        const size_t ci = cellIndex(x, y, z);
-        const auto firstScanned = static_cast<std::uint8_t>((x == from[0]) | (y == from[1]) << 1 | (z == from[2]) << 2);
-        for (int k = start_[ci]; k < start_[ci + 1]; ++k) examine(k, firstScanned);
-      }
 #endif
   if (clearance && best.triangle < 0) {
     // A triangle listed in none of the scanned cells has its box outside the block of them (a border cell reaches to

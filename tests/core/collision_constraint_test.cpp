@@ -102,20 +102,35 @@ TEST(CollisionConstraints, InsideTestDecidesTheSideAndTheOutsideAssumptionNeverP
   }
 }
 
+namespace {
+
+/// A sphere of radius 10 mm about (2, 1, −3) (icosphere, 3 subdivisions), each vertex moved by up to 0.3 mm.
+msk::TriangleMesh jitteredSphere(std::mt19937& rng) {
+  msk::TriangleMesh m = msk::makeIcosphere(10, 3, {2, 1, -3});
+  for (int v = 0; v < m.vertexCount(); ++v) m.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  return m;
+}
+
+/// A grid of `cell` mm over `m`'s box grown by `margin` below and by `pad` cells and more above.
+msk::TriangleGrid gridAround(const msk::TriangleMesh& m, double margin, double cell, double pad) {
+  msk::TriangleGrid grid;
+  msk::TriangleGrid::Layout layout;
+  layout.lo = (m.vertices.colwise().minCoeff().array() - margin).transpose();
+  layout.cell = cell;
+  layout.dims = ((m.vertices.colwise().maxCoeff().transpose() - layout.lo).array() / cell + pad).ceil().cast<int>();
+  grid.build(layout, m.vertices, m.faces);
+  return grid;
+}
+
+}  // namespace
+
 // When nothing lies within the radius, the clearance a grid query reports is a distance that no triangle is nearer
 // than (the exact distances, by brute force), and at least the radius.
 TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
-  msk::TriangleMesh m = msk::makeIcosphere(10, 3, {2, 1, -3});
   std::mt19937 rng(5);
-  for (int v = 0; v < m.vertexCount(); ++v) m.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  const msk::TriangleMesh m = jitteredSphere(rng);
   const double radius = 1.2;
-  msk::TriangleGrid grid;
-  msk::TriangleGrid::Layout layout;
-  layout.lo = (m.vertices.colwise().minCoeff().array() - radius).transpose();
-  layout.cell = 1.7;
-  layout.dims =
-      ((m.vertices.colwise().maxCoeff().transpose() - layout.lo).array() / layout.cell + radius).ceil().cast<int>();
-  grid.build(layout, m.vertices, m.faces);
+  const msk::TriangleGrid grid = gridAround(m, radius, 1.7, radius);
   std::uniform_real_distribution<double> u(-14, 14);
   int empty = 0;
   for (int i = 0; i < 2000; ++i) {
@@ -146,17 +161,10 @@ TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
 // points near the surface, against the exact closest distance by brute force, with and without each incident
 // triangle as the hint.
 TEST(TriangleGrid, TiesAndHintsGiveOneAnswer) {
-  msk::TriangleMesh m = msk::makeIcosphere(10, 3, {2, 1, -3});
   std::mt19937 rng(11);
-  for (int v = 0; v < m.vertexCount(); ++v) m.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  const msk::TriangleMesh m = jitteredSphere(rng);
   const double radius = 1.5;
-  msk::TriangleGrid grid;
-  msk::TriangleGrid::Layout layout;
-  layout.lo = (m.vertices.colwise().minCoeff().array() - radius).transpose();
-  layout.cell = 1.5;
-  layout.dims =
-      ((m.vertices.colwise().maxCoeff().transpose() - layout.lo).array() / layout.cell + 2).ceil().cast<int>();
-  grid.build(layout, m.vertices, m.faces);
+  const msk::TriangleGrid grid = gridAround(m, radius, 1.5, 2);
   std::vector<std::vector<int>> incident(static_cast<size_t>(m.vertexCount()));
   for (int t = 0; t < m.faceCount(); ++t)
     for (int k = 0; k < 3; ++k) incident[static_cast<size_t>(m.faces(t, k))].push_back(t);
