@@ -5,6 +5,7 @@
 #include <string>
 
 #include "msk/core/error.h"
+#include "msk/core/order_statistics.h"
 
 namespace msk {
 namespace {
@@ -139,47 +140,54 @@ ImageF resample(const ImageF& image, const Grid& target, float outside) {
 
 namespace {
 
-/// percentiles() over values of type T (float or double; the order statistics and so the results are the same).
+/// percentiles() of the `n` values at `data` (float or double; the order statistics and so the results are the same),
+/// the non-finite ones left out. Linear interpolation between the order statistics at ⌊rank⌋ and ⌊rank⌋ + 1.
 template <typename T>
-std::vector<double> selectPercentiles(std::vector<T> values, const std::vector<double>& ps) {
+std::vector<double> selectPercentiles(const T* data, size_t n, const std::vector<double>& ps) {
   for (double p : ps)
     if (!(p >= 0 && p <= 100)) throw ParameterError("percentile", std::to_string(p), "must lie in [0, 100]");
-  values.erase(std::remove_if(values.begin(), values.end(), [](T v) { return !std::isfinite(v); }), values.end());
-  if (values.empty()) throw Error("percentile: no finite values");
-  // Ranks in ascending order: after nth_element at a rank, everything beyond it is ≥ its value, so the next higher
-  // rank is selected among those alone, and the next order statistic is their minimum.
-  std::vector<size_t> order(ps.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ps[a] < ps[b]; });
+  const auto visit = [data, n](const auto& f) {
+    for (size_t i = 0; i < n; ++i)
+      if (std::isfinite(data[i])) f(static_cast<double>(data[i]));
+  };
+  const OrderStatistics stats(visit);
+  const size_t count = stats.count();
+  if (count == 0) throw Error("percentile: no finite values");
+  std::vector<size_t> lo(ps.size());
+  std::vector<double> frac(ps.size());
+  std::vector<size_t> ranks;
+  for (size_t i = 0; i < ps.size(); ++i) {
+    const double rank = ps[i] / 100.0 * static_cast<double>(count - 1);
+    lo[i] = std::min(static_cast<size_t>(std::floor(rank)), count - 1);
+    frac[i] = rank - static_cast<double>(lo[i]);
+    ranks.push_back(lo[i]);
+    if (frac[i] > 0 && lo[i] + 1 < count) ranks.push_back(lo[i] + 1);
+  }
+  std::sort(ranks.begin(), ranks.end());
+  ranks.erase(std::unique(ranks.begin(), ranks.end()), ranks.end());
+  const std::vector<double> values = stats.select(visit, ranks);
+  const auto valueAt = [&](size_t rank) {
+    return values[static_cast<size_t>(std::lower_bound(ranks.begin(), ranks.end(), rank) - ranks.begin())];
+  };
   std::vector<double> out(ps.size());
-  size_t from = 0;
-  for (size_t i : order) {
-    const double rank = ps[i] / 100.0 * static_cast<double>(values.size() - 1);
-    const size_t lo = std::min(static_cast<size_t>(std::floor(rank)), values.size() - 1);
-    const double frac = rank - static_cast<double>(lo);
-    const auto first = values.begin() + static_cast<std::ptrdiff_t>(std::min(from, lo));
-    std::nth_element(first, values.begin() + static_cast<std::ptrdiff_t>(lo), values.end());
-    from = lo;
-    const double vLo = static_cast<double>(values[lo]);
-    out[i] = vLo;
-    if (frac > 0 && lo + 1 < values.size())
-      out[i] =
-          vLo + frac * (*std::min_element(values.begin() + static_cast<std::ptrdiff_t>(lo) + 1, values.end()) - vLo);
+  for (size_t i = 0; i < ps.size(); ++i) {
+    const double vLo = valueAt(lo[i]);
+    out[i] = frac[i] > 0 && lo[i] + 1 < count ? vLo + frac[i] * (valueAt(lo[i] + 1) - vLo) : vLo;
   }
   return out;
 }
 
 }  // namespace
 
-std::vector<double> percentiles(std::vector<double> values, const std::vector<double>& ps) {
-  return selectPercentiles(std::move(values), ps);
+std::vector<double> percentiles(const std::vector<double>& values, const std::vector<double>& ps) {
+  return selectPercentiles(values.data(), values.size(), ps);
 }
 
 std::vector<double> percentiles(const ImageF& image, const std::vector<double>& ps) {
-  return selectPercentiles(image.data, ps);
+  return selectPercentiles(image.data.data(), image.data.size(), ps);
 }
 
-double percentile(std::vector<double> values, double p) { return percentiles(std::move(values), {p}).front(); }
+double percentile(const std::vector<double>& values, double p) { return percentiles(values, {p}).front(); }
 
 double percentile(const ImageF& image, double p) { return percentiles(image, {p}).front(); }
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "msk/core/error.h"
+#include "msk/core/order_statistics.h"
 
 namespace msk {
 
@@ -54,18 +55,24 @@ const char* qualityStatusName(QualityStatus s) {
 
 double imageNoiseSigma(const ImageF& image) {
   const Grid& g = image.grid;
-  std::vector<double> d;
-  d.reserve(image.data.size());
-  for (int k = 0; k < g.dims[2]; ++k)
-    for (int j = 0; j < g.dims[1]; ++j)
-      for (int i = 0; i + 1 < g.dims[0]; ++i) {
-        const double a = image.data[g.index(i, j, k)], b = image.data[g.index(i + 1, j, k)];
-        if (std::isfinite(a) && std::isfinite(b)) d.push_back(b - a);
+  // The differences of neighbours along i, enumerated afresh by each pass of the selections (OrderStatistics) rather
+  // than kept: the median, then the median absolute deviation from it.
+  const auto differences = [&](const auto& f) {
+    for (int k = 0; k < g.dims[2]; ++k)
+      for (int j = 0; j < g.dims[1]; ++j) {
+        const float* row = image.data.data() + g.index(0, j, k);
+        for (int i = 0; i + 1 < g.dims[0]; ++i) {
+          const double a = row[i], b = row[i + 1];
+          if (std::isfinite(a) && std::isfinite(b)) f(b - a);
+        }
       }
-  // The median, then the median absolute deviation from it, selected in place (the differences' order is not needed).
-  const double med = medianInPlace(d);
-  for (double& x : d) x = std::fabs(x - med);
-  return kMadToSigma * medianInPlace(d) / std::sqrt(2.0);
+  };
+  const OrderStatistics d(differences);
+  if (d.count() == 0) return 0;
+  const double med = d.select(differences, {d.count() / 2}).front();
+  const auto deviations = [&](const auto& f) { differences([&](double x) { f(std::fabs(x - med)); }); };
+  const OrderStatistics dev(deviations);
+  return kMadToSigma * dev.select(deviations, {dev.count() / 2}).front() / std::sqrt(2.0);
 }
 
 ObjectQuality measureQuality(const ImageFeatures& features, const TriangleMesh& mesh, Polarity polarity,

@@ -29,11 +29,11 @@ double percentile(const ImageF& image, double p);
 
 /// The p-th percentile (0..100) of the finite entries of `values`: linear interpolation between the order
 /// statistics at rank p/100·(n−1). Throws ParameterError for p outside [0, 100], Error if no entry is finite.
-double percentile(std::vector<double> values, double p);
-/// The percentiles `ps` (each 0..100) of the finite entries of `values`, as percentile() gives each, in one pass of
-/// selections over one copy. Throws as percentile() does.
-std::vector<double> percentiles(std::vector<double> values, const std::vector<double>& ps);
-/// The percentiles `ps` of an image's finite voxel values (one copy of the voxels, in their own precision).
+double percentile(const std::vector<double>& values, double p);
+/// The percentiles `ps` (each 0..100) of the finite entries of `values`, as percentile() gives each, from two passes
+/// over them (OrderStatistics, no copy). Throws as percentile() does.
+std::vector<double> percentiles(const std::vector<double>& values, const std::vector<double>& ps);
+/// The percentiles `ps` of an image's finite voxel values (two passes over the voxels, no copy).
 std::vector<double> percentiles(const ImageF& image, const std::vector<double>& ps);
 
 }  // namespace msk
