@@ -41,15 +41,15 @@ inline int edgeSide(const Eigen::Vector3d& a, int ia, const Eigen::Vector3d& b, 
 /// x clamped to the index range [0, n−1] and converted (safe for values far outside int).
 inline int clampToIndex(double x, int n) { return static_cast<int>(std::clamp(x, 0.0, static_cast<double>(n - 1))); }
 
-}  // namespace
-
-void rasterizeInto(LabelMap& labels, const TriangleMesh& mesh, int32_t label) {
+/// Calls `run(row, i0, i1)` for every run of voxels i0..i1 (inclusive) of the row (·, j, k) = row j + nj·k whose
+/// centres lie inside the closed mesh, rows in ascending order and runs along a row in ascending i; consecutive runs
+/// of a row may share their end voxel. Throws Error if the mesh is not closed or the grid invalid.
+template <class Run>
+void forEachInsideRun(const TriangleMesh& mesh, const Grid& g, const Run& run) {
   const std::string problem = closedMeshProblem(mesh);
   if (!problem.empty()) throw Error("rasterize: the mesh is not a closed surface: " + problem);
-  const Grid& g = labels.grid;
   const std::string gridProblem = g.problem();
   if (!gridProblem.empty()) throw Error("rasterize: invalid grid: " + gridProblem);
-  MSK_ASSERT(labels.data.size() == g.voxelCount(), "label map data does not match its grid");
 
   // Vertices in continuous voxel coordinates: voxel centres sit at integer (i, j, k).
   const int nv = mesh.vertexCount(), nf = mesh.faceCount();
@@ -127,11 +127,32 @@ void rasterizeInto(LabelMap& labels, const TriangleMesh& mesh, int32_t label) {
         if (winding <= 0 || hits[h].first > ni - 1 || hits[h + 1].first < 0) continue;
         const int i0 = clampToIndex(std::ceil(hits[h].first), ni);
         const int i1 = clampToIndex(std::floor(hits[h + 1].first), ni);
-        int32_t* out = labels.data.data() + g.index(0, j, k);
-        for (int i = i0; i <= i1; ++i) out[i] = label;
+        if (i0 <= i1) run(row, i0, i1);
       }
     }
   }
+}
+
+}  // namespace
+
+void rasterizeInto(LabelMap& labels, const TriangleMesh& mesh, int32_t label) {
+  MSK_ASSERT(labels.data.size() == labels.grid.voxelCount(), "label map data does not match its grid");
+  const size_t ni = static_cast<size_t>(labels.grid.dims[0]);
+  forEachInsideRun(mesh, labels.grid, [&](size_t row, int i0, int i1) {
+    int32_t* out = labels.data.data() + row * ni;
+    for (int i = i0; i <= i1; ++i) out[i] = label;
+  });
+}
+
+std::vector<size_t> insideVoxelIndices(const TriangleMesh& mesh, const Grid& grid) {
+  const size_t ni = static_cast<size_t>(grid.dims[0]);
+  std::vector<size_t> out;
+  forEachInsideRun(mesh, grid, [&](size_t row, int i0, int i1) {
+    size_t from = row * ni + static_cast<size_t>(i0);
+    if (!out.empty() && out.back() >= from) from = out.back() + 1;  // a run's first voxel may end the previous one
+    for (size_t v = from; v <= row * ni + static_cast<size_t>(i1); ++v) out.push_back(v);
+  });
+  return out;
 }
 
 LabelMap rasterize(const TriangleMesh& mesh, const Grid& grid) {

@@ -12,11 +12,7 @@
 namespace msk {
 
 std::vector<size_t> insideVoxels(const TriangleMesh& surface, const Grid& grid) {
-  const LabelMap mask = rasterize(surface, grid);
-  std::vector<size_t> out;
-  for (size_t v = 0; v < mask.data.size(); ++v)
-    if (mask.data[v]) out.push_back(v);
-  return out;
+  return insideVoxelIndices(surface, grid);
 }
 
 OverlapRepairReport repairOverlapVoxels(const std::vector<TriangleMesh*>& surfaces,

@@ -5,6 +5,8 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <vector>
 
 #include "msk/core/error.h"
 #include "msk/test/shapes.h"
@@ -197,4 +199,64 @@ TEST(Rasterize, FollowsTheWindingNumberWhereTheSurfaceFolds) {
     nTurned += turned.data[i] != 0;
   }
   EXPECT_GT(nTwice, nTurned * 2);
+}
+
+namespace {
+
+/// An axis-aligned box [lo, hi] as 12 outward-facing triangles.
+msk::TriangleMesh boxMesh(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  msk::TriangleMesh box;
+  box.vertices.resize(8, 3);
+  for (int v = 0; v < 8; ++v)
+    box.vertices.row(v) << (v & 1 ? hi.x() : lo.x()), (v & 2 ? hi.y() : lo.y()), (v & 4 ? hi.z() : lo.z());
+  box.faces.resize(12, 3);
+  box.faces << 0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7,
+      5;
+  return box;
+}
+
+std::vector<size_t> labelledIndices(const msk::LabelMap& labels) {
+  std::vector<size_t> out;
+  for (size_t v = 0; v < labels.data.size(); ++v)
+    if (labels.data[v] != 0) out.push_back(v);
+  return out;
+}
+
+}  // namespace
+
+// The voxel list without a label map is the label map's, voxel for voxel and ascending: on ties at voxel centres, on
+// two boxes that touch in a plane of voxel centres (where one run of a row ends on the voxel the next starts on), on a
+// folded surface and on an oblique grid.
+TEST(Rasterize, InsideVoxelIndicesAreTheLabelledVoxels) {
+  msk::Grid unit;
+  unit.dims = {12, 10, 10};
+  const msk::TriangleMesh touching =
+      msk::test::joinedMeshes(boxMesh({2, 2, 2}, {5, 7, 7}), boxMesh({5, 2, 2}, {9, 7, 7}));
+  const std::vector<size_t> touchingList = msk::insideVoxelIndices(touching, unit);
+  EXPECT_EQ(touchingList, labelledIndices(msk::rasterize(touching, unit)));
+  const size_t row44 = unit.index(0, 4, 4);  // an interior row: i 2..9, the shared voxel i = 5 once
+  EXPECT_EQ(
+      std::count_if(touchingList.begin(), touchingList.end(), [&](size_t v) { return v >= row44 && v < row44 + 12; }),
+      8);
+  EXPECT_TRUE(std::adjacent_find(touchingList.begin(), touchingList.end(), std::greater_equal<size_t>()) ==
+              touchingList.end());
+
+  const msk::TriangleMesh cube = boxMesh({2, 2, 2}, {7, 7, 7});
+  EXPECT_EQ(msk::insideVoxelIndices(cube, unit), labelledIndices(msk::rasterize(cube, unit)));
+
+  msk::TriangleMesh turned = msk::makeIcosphere(6.0, 3, {6.3, 0.2, 0.1});
+  msk::flipFaces(turned);
+  const msk::TriangleMesh folded = msk::test::joinedMeshes(msk::makeIcosphere(6.0, 3, {0, 0, 0}), turned);
+  msk::Grid g;
+  g.dims = {40, 30, 30};
+  g.spacing = {0.5, 0.5, 0.5};
+  g.origin = {-8.1, -7.3, -7.2};
+  EXPECT_EQ(msk::insideVoxelIndices(folded, g), labelledIndices(msk::rasterize(folded, g)));
+
+  const Eigen::Vector3d c(5.3, -7.1, 12.9);
+  const msk::TriangleMesh sphere = msk::makeIcosphere(20.0, 4, c);
+  const msk::Grid oblique = gridAround(c, {64, 64, 18}, {0.8, 0.8, 3.0}, msk::Grid::rotationXYZ({30, -20, 45}));
+  const std::vector<size_t> sphereList = msk::insideVoxelIndices(sphere, oblique);
+  EXPECT_GT(sphereList.size(), 1000u);
+  EXPECT_EQ(sphereList, labelledIndices(msk::rasterize(sphere, oblique)));
 }
