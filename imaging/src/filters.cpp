@@ -61,7 +61,7 @@ void tapSums(const std::vector<double>& kernel, const double* const* taps, size_
 /// Σ_t kernel[t]·x[p − radius + t] summed in doubles in the order of t (tapSums()): along axis 0 over a line padded
 /// with its edge values, along axes 1 and 2 a whole row of axis 0 at a time (a plane of the image copied into a
 /// buffer).
-void convolveAxis(std::vector<float>& data, const Grid& grid, int axis, const std::vector<double>& kernel) {
+void convolveAxis(LargeVector<float>& data, const Grid& grid, int axis, const std::vector<double>& kernel) {
   const int n = grid.dims[axis];
   const int radius = static_cast<int>(kernel.size() / 2);
   std::vector<const double*> taps(kernel.size());

@@ -28,9 +28,8 @@ namespace {
 const Eigen::Matrix3d kFlip = Eigen::Vector3d(-1, -1, 1).asDiagonal();
 
 /// Image data with `grid`'s placement in `space` and `values` as its point data.
-template <typename Array, typename T>
-void writeGrid(const std::string& path, const Grid& grid, const std::vector<T>& values, const char* name,
-               MeshSpace space) {
+template <typename Array, typename Values>
+void writeGrid(const std::string& path, const Grid& grid, const Values& values, const char* name, MeshSpace space) {
   detail::VtkQuiet quiet;
   const Eigen::Matrix3d flip = space == MeshSpace::LPS ? kFlip : Eigen::Matrix3d::Identity();
   const Eigen::Vector3d origin = flip * grid.origin;

@@ -14,7 +14,7 @@ namespace msk::reg {
 /// One level of the subject: normalised values on its grid and the world → voxel map.
 struct SubjectLevel {
   Grid grid;
-  std::vector<float> values;  ///< i fastest
+  LargeVector<float> values;  ///< i fastest
   Eigen::Matrix4d worldToVoxel = Eigen::Matrix4d::Identity();
 };
 

@@ -157,7 +157,7 @@ TEST(Filters, GaussianEqualsTheClampedSumOfItsDefinition) {
   std::uniform_real_distribution<float> u(-5, 5);
   for (float& v : image.data) v = u(rng);
   const double sigma = 1.9;
-  std::vector<float> ref = image.data;
+  std::vector<float> ref(image.data.begin(), image.data.end());
   for (int a = 0; a < 3; ++a) {
     const double s = sigma / g.spacing[a];
     const int radius = std::max(1, static_cast<int>(std::ceil(4.0 * s)));

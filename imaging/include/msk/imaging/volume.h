@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "msk/core/large_buffer.h"
 #include "msk/imaging/grid.h"
 
 namespace msk {
@@ -11,7 +12,7 @@ namespace msk {
 template <typename T>
 struct Volume {
   Grid grid;            ///< geometry
-  std::vector<T> data;  ///< grid.voxelCount() values, i fastest
+  LargeVector<T> data;  ///< grid.voxelCount() values, i fastest (huge pages where the kernel offers them)
 
   Volume() = default;
   /// Allocates a volume on `g` filled with `fill`.
