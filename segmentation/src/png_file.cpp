@@ -23,14 +23,42 @@ namespace msk {
 
 namespace {
 
-/// libpng's simplified-API image for `picture` (8-bit, 1 or 3 channels, BGR order).
-png_image pngImageFor(const cv::Mat& picture) {
-  png_image img{};
-  img.version = PNG_IMAGE_VERSION;
-  img.width = static_cast<png_uint_32>(picture.cols);
-  img.height = static_cast<png_uint_32>(picture.rows);
-  img.format = picture.channels() == 1 ? PNG_FORMAT_GRAY : PNG_FORMAT_BGR;
-  return img;
+/// libpng's error handler: an error longjmps back to the writer's caller instead of aborting.
+[[noreturn]] void pngFail(png_structp png, png_const_charp message) {
+  auto* why = static_cast<std::string*>(png_get_error_ptr(png));
+  if (why) *why = message ? message : "unknown error";
+  png_longjmp(png, 1);
+}
+
+/// Writes `pixels` (8-bit grey or BGR, continuous) to the open file `f` as PNG; false with `why` on a libpng error.
+/// Deflate level 3 and the "up" filter alone: on the QC pictures (flat areas, grey ramps) against libpng's defaults
+/// (level 6, every filter tried per row) a thigh mosaic takes 0.17 s instead of 0.56 s for 1.86 MB instead of 1.74
+/// MB, a single slice the same size. The simplified API (png_image_write_*) offers no such setting.
+bool encodePng(std::FILE* f, const cv::Mat& pixels, std::string& why) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &why, pngFail, nullptr);
+  if (!png) {
+    why = "out of memory";
+    return false;
+  }
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    if (why.empty()) why = "out of memory";
+    return false;
+  }
+  png_init_io(png, f);
+  png_set_compression_level(png, 3);
+  png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_UP);
+  const bool colour = pixels.channels() == 3;
+  png_set_IHDR(png, info, static_cast<png_uint_32>(pixels.cols), static_cast<png_uint_32>(pixels.rows), 8,
+               colour ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_BASE,
+               PNG_FILTER_TYPE_BASE);
+  png_write_info(png, info);
+  if (colour) png_set_bgr(png);
+  for (int r = 0; r < pixels.rows; ++r) png_write_row(png, pixels.ptr<png_byte>(r));
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
 }
 
 }  // namespace
@@ -40,12 +68,13 @@ void writePngAtomically(const std::string& path, const cv::Mat& picture) {
     throw IoError(path, "cannot write PNG: the picture is not 8-bit grey or BGR");
   const cv::Mat pixels = picture.isContinuous() ? picture : picture.clone();
   writeAtomically(path, [&](const std::string& tmp) {
-    png_image img = pngImageFor(pixels);
-    const int ok =
-        png_image_write_to_file(&img, tmp.c_str(), 0, pixels.data, static_cast<png_int_32>(pixels.step[0]), nullptr);
-    const std::string why = img.message;
-    png_image_free(&img);
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw IoError(path, "cannot write PNG: cannot open " + tmp);
+    std::string why;
+    const bool ok = encodePng(f, pixels, why);
+    const bool closed = std::fclose(f) == 0;
     if (!ok) throw IoError(path, "cannot write PNG: " + why);
+    if (!closed) throw IoError(path, "cannot write PNG: the file could not be completed (disk full?)");
   });
 }
 

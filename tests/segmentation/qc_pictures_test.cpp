@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
 #include "msk/core/error.h"
+#include "msk/segmentation/png_file.h"
 #include "msk/test/files.h"
 #include "msk/test/volumes.h"
 
@@ -190,4 +193,34 @@ TEST(QcPictures, ErrorsAndAbsentObjects) {
   EXPECT_THROW(msk::readRgbPicture(dir.file("absent.png")), msk::IoError);
   // No temporary files are left behind.
   for (const auto& f : dir.list()) EXPECT_EQ(f.find(".tmp"), std::string::npos) << f;
+}
+
+// PNG files hold their pixels exactly, colour and grey (read back as BGR with equal channels), including a picture
+// whose rows are not contiguous; a folder that does not exist is a clear error and leaves nothing behind.
+TEST(PngFile, RoundTripsColourAndGreyExactly) {
+  ScratchDir dir;
+  cv::Mat colour(37, 53, CV_8UC3), grey(21, 17, CV_8UC1);
+  cv::randu(colour, cv::Scalar::all(0), cv::Scalar::all(256));
+  cv::randu(grey, cv::Scalar::all(0), cv::Scalar::all(256));
+  msk::writePngAtomically(dir.file("colour.png"), colour);
+  msk::writePngAtomically(dir.file("grey.png"), grey);
+  const cv::Mat roi = colour(cv::Rect(5, 3, 20, 30));
+  ASSERT_FALSE(roi.isContinuous());
+  msk::writePngAtomically(dir.file("roi.png"), roi);
+  const cv::Mat c = msk::readPicture(dir.file("colour.png")), g = msk::readPicture(dir.file("grey.png")),
+                r = msk::readPicture(dir.file("roi.png"));
+  ASSERT_EQ(c.type(), CV_8UC3);
+  EXPECT_EQ(cv::norm(c, colour, cv::NORM_INF), 0);
+  EXPECT_EQ(cv::norm(r, roi, cv::NORM_INF), 0);
+  cv::Mat greyAsBgr;
+  cv::cvtColor(grey, greyAsBgr, cv::COLOR_GRAY2BGR);
+  EXPECT_EQ(cv::norm(g, greyAsBgr, cv::NORM_INF), 0);
+  const std::string missing = dir.file("no-such-folder/x.png");
+  try {
+    msk::writePngAtomically(missing, colour);
+    FAIL() << "wrote into a missing folder";
+  } catch (const msk::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("no-such-folder"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("no-such-folder")));
 }
