@@ -13,10 +13,9 @@ namespace {
 /// Tolerance (voxels) by which a sample may lie beyond the first/last voxel centre and still count as inside.
 constexpr double kInsideTolVoxels = 1e-9;
 
-/// Continuous voxel coordinates of `worldMm`, clamped into [0, dims−1]; false if outside (beyond the tolerance)
-/// or not finite.
-bool insideVoxel(const Grid& grid, const Eigen::Vector3d& worldMm, Eigen::Vector3d& ijk) {
-  ijk = grid.toVoxel(worldMm);
+/// `ijk` (continuous voxel coordinates) clamped into [0, dims−1]; false if outside (beyond the tolerance) or not
+/// finite.
+bool insideVoxel(const Grid& grid, Eigen::Vector3d& ijk) {
   for (int a = 0; a < 3; ++a) {
     const double hi = grid.dims[a] - 1;
     if (!std::isfinite(ijk[a]) || ijk[a] < -kInsideTolVoxels || ijk[a] > hi + kInsideTolVoxels) return false;
@@ -98,9 +97,17 @@ void convolveAxis(LargeVector<float>& data, const Grid& grid, int axis, const st
 }  // namespace
 
 std::optional<double> sampleTrilinear(const ImageF& image, const Eigen::Vector3d& worldMm) {
+  return sampleTrilinearAtVoxel(image, image.grid.toVoxel(worldMm));
+}
+
+std::optional<int32_t> sampleNearest(const LabelMap& labels, const Eigen::Vector3d& worldMm) {
+  return sampleNearestAtVoxel(labels, labels.grid.toVoxel(worldMm));
+}
+
+std::optional<double> sampleTrilinearAtVoxel(const ImageF& image, const Eigen::Vector3d& ijk) {
   const Grid& g = image.grid;
-  Eigen::Vector3d v;
-  if (!insideVoxel(g, worldMm, v)) return std::nullopt;
+  Eigen::Vector3d v = ijk;
+  if (!insideVoxel(g, v)) return std::nullopt;
   int i0[3], i1[3];
   double t[3];
   for (int a = 0; a < 3; ++a) {
@@ -119,10 +126,10 @@ std::optional<double> sampleTrilinear(const ImageF& image, const Eigen::Vector3d
   return result;
 }
 
-std::optional<int32_t> sampleNearest(const LabelMap& labels, const Eigen::Vector3d& worldMm) {
+std::optional<int32_t> sampleNearestAtVoxel(const LabelMap& labels, const Eigen::Vector3d& ijk) {
   const Grid& g = labels.grid;
-  Eigen::Vector3d v;
-  if (!insideVoxel(g, worldMm, v)) return std::nullopt;
+  Eigen::Vector3d v = ijk;
+  if (!insideVoxel(g, v)) return std::nullopt;
   int idx[3];
   for (int a = 0; a < 3; ++a) idx[a] = std::clamp(static_cast<int>(std::lround(v[a])), 0, g.dims[a] - 1);
   return labels.at(idx[0], idx[1], idx[2]);

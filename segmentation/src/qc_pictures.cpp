@@ -106,11 +106,23 @@ Plane makePlane(const Grid& grid, const View& v, const Eigen::Vector3d& centre) 
   return p;
 }
 
+/// Calls f(c, r, ijk) for every pixel of the plane with its centre's continuous voxel coordinates on `grid`, stepped
+/// along each row from the row's first pixel (the map is affine).
+template <class F>
+void forEachPixelVoxel(const Grid& grid, const Plane& p, const View& v, const F& f) {
+  const Eigen::Vector3d step = grid.toVoxel(p.at(1, 0, v)) - grid.toVoxel(p.at(0, 0, v));
+  for (int r = 0; r < p.height; ++r) {
+    const Eigen::Vector3d first = grid.toVoxel(p.at(0, r, v));
+    for (int c = 0; c < p.width; ++c) f(c, r, Eigen::Vector3d(first + c * step));
+  }
+}
+
 /// Labels sampled (nearest) on the plane; 0 outside the grid.
 cv::Mat labelSlice(const LabelMap& labels, const Plane& p, const View& v) {
   cv::Mat out(p.height, p.width, CV_32S, cv::Scalar(0));
-  for (int r = 0; r < p.height; ++r)
-    for (int c = 0; c < p.width; ++c) out.at<int32_t>(r, c) = sampleNearest(labels, p.at(c, r, v)).value_or(0);
+  forEachPixelVoxel(labels.grid, p, v, [&](int c, int r, const Eigen::Vector3d& ijk) {
+    out.at<int32_t>(r, c) = sampleNearestAtVoxel(labels, ijk).value_or(0);
+  });
   return out;
 }
 
@@ -147,13 +159,13 @@ std::pair<double, double> intensityWindow(const ImageF& image) {
 cv::Mat greySlice(const ImageF& image, const Plane& p, const View& v, std::pair<double, double> window) {
   cv::Mat pic(p.height, p.width, CV_8UC3, cv::Scalar(0, 0, 0));
   const auto [lo, hi] = window;
-  for (int r = 0; r < p.height; ++r)
-    for (int c = 0; c < p.width; ++c) {
-      const std::optional<double> s = sampleTrilinear(image, p.at(c, r, v));
-      if (!s || !std::isfinite(*s)) continue;
-      const auto grey = static_cast<uint8_t>(std::lround(255.0 * std::clamp((*s - lo) / (hi - lo), 0.0, 1.0)));
-      pic.at<cv::Vec3b>(r, c) = cv::Vec3b(grey, grey, grey);
-    }
+  const double scale = 255.0 / (hi - lo);
+  forEachPixelVoxel(image.grid, p, v, [&](int c, int r, const Eigen::Vector3d& ijk) {
+    const std::optional<double> s = sampleTrilinearAtVoxel(image, ijk);
+    if (!s || !std::isfinite(*s)) return;
+    const auto grey = static_cast<uint8_t>(std::clamp((*s - lo) * scale, 0.0, 255.0) + 0.5);
+    pic.at<cv::Vec3b>(r, c) = cv::Vec3b(grey, grey, grey);
+  });
   return pic;
 }
 

@@ -15,6 +15,12 @@ std::optional<double> sampleTrilinear(const ImageF& image, const Eigen::Vector3d
 /// Nearest-voxel value at a world point; std::nullopt outside.
 std::optional<int32_t> sampleNearest(const LabelMap& labels, const Eigen::Vector3d& worldMm);
 
+/// sampleTrilinear() at continuous voxel coordinates `ijk` (Grid::toVoxel() of the world point): the same inside test
+/// and interpolation, for callers that step through voxel coordinates themselves.
+std::optional<double> sampleTrilinearAtVoxel(const ImageF& image, const Eigen::Vector3d& ijk);
+/// sampleNearest() at continuous voxel coordinates `ijk`.
+std::optional<int32_t> sampleNearestAtVoxel(const LabelMap& labels, const Eigen::Vector3d& ijk);
+
 /// Separable Gaussian smoothing, sigma in mm (converted per axis with the spacing; sigma ≤ 0: copy).
 ImageF gaussianSmooth(const ImageF& image, double sigmaMm);
 
