@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "msk/core/error.h"
+#include "msk/core/large_buffer.h"
 
 namespace msk {
 
@@ -37,7 +38,7 @@ class OrderStatistics {
     std::vector<uint32_t> binOf(ranks.size());
     std::vector<size_t> rankInBin(ranks.size());
     std::vector<int32_t> slotOfBin(kBins, -1);
-    std::vector<std::vector<double>> slots;
+    std::vector<LargeVector<double>> slots;  // a bin can hold most values (an image's flat background)
     for (size_t r = 0; r < ranks.size(); ++r) {
       uint64_t below = 0;
       uint32_t b = 0;
@@ -56,7 +57,7 @@ class OrderStatistics {
     });
     std::vector<double> out(ranks.size());
     for (size_t r = 0; r < ranks.size(); ++r) {
-      std::vector<double>& v = slots[static_cast<size_t>(slotOfBin[binOf[r]])];
+      LargeVector<double>& v = slots[static_cast<size_t>(slotOfBin[binOf[r]])];
       const auto at = v.begin() + static_cast<std::ptrdiff_t>(rankInBin[r]);
       std::nth_element(v.begin(), at, v.end());
       out[r] = *at;
