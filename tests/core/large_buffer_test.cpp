@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <numeric>
 
-// Buffers from 1 MiB up are their own 2 MiB-aligned mappings; smaller ones come from std::allocator. Both hold their
-// values through copies, growth and shrinking.
+// Buffers from 1 MiB up are their own 2 MiB-aligned mappings (but under a sanitizer); smaller ones come from
+// std::allocator. Both hold their values through copies, growth and shrinking.
 TEST(LargeBuffer, VectorsOfEverySizeKeepTheirValues) {
   for (size_t n : {size_t{0}, size_t{1}, size_t{1000}, size_t{262143}, size_t{262144}, size_t{3000000}}) {
     SCOPED_TRACE(n);

@@ -12,6 +12,19 @@
 #include <new>
 #include <vector>
 
+// Under AddressSanitizer or MemorySanitizer every buffer comes from std::allocator, exactly sized, so that the
+// sanitizer still sees its bounds.
+#if defined(__SANITIZE_ADDRESS__)
+#define MSK_MAP_LARGE_BUFFERS 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer)
+#define MSK_MAP_LARGE_BUFFERS 0
+#endif
+#endif
+#ifndef MSK_MAP_LARGE_BUFFERS
+#define MSK_MAP_LARGE_BUFFERS 1
+#endif
+
 namespace msk {
 
 namespace detail {
@@ -20,7 +33,8 @@ void* mapLargeBuffer(size_t bytes);
 /// Unmaps a buffer of mapLargeBuffer().
 void unmapLargeBuffer(void* p, size_t bytes) noexcept;
 constexpr size_t kHugePage = size_t{2} << 20;
-constexpr size_t kHugeFrom = size_t{1} << 20;  ///< buffers from 1 MiB up
+/// Buffers from 1 MiB up are mapped (none under a sanitizer).
+constexpr size_t kHugeFrom = MSK_MAP_LARGE_BUFFERS ? size_t{1} << 20 : static_cast<size_t>(-1);
 }  // namespace detail
 
 /// std::allocator for small buffers; huge-page mappings from detail::kHugeFrom bytes up. Stateless: any two compare
