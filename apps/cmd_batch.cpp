@@ -56,9 +56,11 @@ std::string isoTime(std::time_t t) {
 }
 
 /// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid. Unless
-/// the options after -- set --threads, each case gets an equal share of the cores among the `jobs` cases run at once
-/// (results do not depend on it, so it is not part of the case's fingerprint).
-pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded, int jobs) {
+/// the options after -- set --threads, each case gets an equal share of the cores among the `jobs` cases run at once;
+/// unless they set --template-cache, the cases share `templateCache` (results depend on neither, so neither is part of
+/// the case's fingerprint).
+pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::string>& forwarded, int jobs,
+                const std::string& templateCache) {
   std::vector<std::string> args = {exe, "segment", "--image", c.image, "--out", c.out};
   if (c.atlas.empty()) {
     args.insert(args.end(), {"--scene", c.scene});
@@ -74,6 +76,10 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
     const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     args.insert(args.end(), {"--threads", std::to_string(std::max(1, cores / std::max(1, jobs)))});
   }
+  const bool cacheGiven = std::any_of(forwarded.begin(), forwarded.end(), [](const std::string& a) {
+    return a == "--template-cache" || a.rfind("--template-cache=", 0) == 0;
+  });
+  if (!cacheGiven) args.insert(args.end(), {"--template-cache", templateCache});
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
   cargs.push_back(nullptr);
@@ -288,7 +294,16 @@ std::string fingerprintOf(const CohortSettings& b, const Case& c, std::map<std::
       }
       text += it->second + "\n";
     }
-    for (const std::string& a : b.forwarded) text += a + '\x1f';
+    // The options after --, less a template cache's folder (it changes no result).
+    for (size_t i = 0; i < b.forwarded.size(); ++i) {
+      const std::string& a = b.forwarded[i];
+      if (a.rfind("--template-cache=", 0) == 0) continue;
+      if (a == "--template-cache") {
+        ++i;
+        continue;
+      }
+      text += a + '\x1f';
+    }
     text += "\nimage " + sha256File(c.image) + "\n";
     return sha256Text(text).substr(0, 16);
   } catch (const Error&) {
@@ -396,7 +411,8 @@ int runCases(const CohortSettings& b, std::vector<Case>& cases, const std::vecto
       }
       if (c.bids) fs::remove_all(c.out, ec);  // what a batch killed while publishing left
       fs::remove(exitCodePath(b, c), ec);
-      running[startCase(exe, c, b.forwarded, b.jobs)] = {i, std::chrono::steady_clock::now(), std::move(claim)};
+      running[startCase(exe, c, b.forwarded, b.jobs, (b.outAbs / ".template-cache").string())] = {
+          i, std::chrono::steady_clock::now(), std::move(claim)};
     }
     if (running.empty()) break;
     int status = 0;

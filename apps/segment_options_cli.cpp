@@ -73,6 +73,10 @@ void addSegmentOptions(CLI::App& app, SegmentOptions& o, SegmentOutputs& out) {
       "evolve every template on its own triangulation (default: muscles' and generic objects' templates are "
       "remeshed isotropically to their vertex count first, so their output surfaces do not fold; bones keep theirs; "
       "the scene key \"remesh\" per object wins)");
+  app.add_option("--template-cache", o.surface.templateCache,
+                 "folder where the meshes derived from the templates (remeshed, coarser levels) are kept and reused "
+                 "by later runs of this build, bitwise the same; for cohorts (batch gives its cases one by default)")
+      ->type_name("DIR");
   app.add_option_function<double>(
          "--sigma-fine", [&o](double v) { o.image.sigmaFine = v; },
          "image scale at the finest level, x the smallest spacing (default 0.5; accurate 0.25)")

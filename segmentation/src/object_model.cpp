@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "msk/core/error.h"
@@ -89,8 +90,14 @@ Points ObjectState::bentByStage(const Points& templ) const {
   return GeneralisedCylinder(templ, stageAxisRef, attachToAxis(templ, stageAxisRef)).surface(stageAxis);
 }
 
-void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features) {
+void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features,
+                   MeshCache* templateCache) {
   const SceneObject& obj = *st.obj;
+  // A mesh derived from another, through the template cache where the run has one.
+  const auto derived = [templateCache](const std::string& op, const TriangleMesh& input,
+                                       const std::function<TriangleMesh()>& derive) {
+    return templateCache ? templateCache->get(op, input, derive) : derive();
+  };
   st.out.name = obj.name;
   st.out.label = obj.label;
   st.out.templateVolumeMm3 = enclosedVolume(obj.templ);
@@ -101,7 +108,10 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // surface is its tetrahedralisation's boundary, which the mesher makes of well-shaped facets anyway.
   st.out.remeshed =
       obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone) && !obj.model.volumetric;
-  const TriangleMesh templ = st.out.remeshed ? remeshIsotropic(obj.templ, obj.templ.vertexCount()) : obj.templ;
+  const int count = obj.templ.vertexCount();
+  const TriangleMesh templ = st.out.remeshed ? derived("remeshIsotropic " + std::to_string(count), obj.templ,
+                                                       [&] { return remeshIsotropic(obj.templ, count); })
+                                             : obj.templ;
   // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
   st.lv.resize(static_cast<size_t>(rs.levels));
   st.lv[0].triangles = templ;
@@ -115,8 +125,10 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   }
   for (int l = 1; l < rs.levels; ++l) {
     const int target = std::max(150, st.lv[l - 1].triangles.vertexCount() / 4);
-    st.lv[l].triangles = target < st.lv[l - 1].triangles.vertexCount() ? decimateMesh(st.lv[l - 1].triangles, target)
-                                                                       : st.lv[l - 1].triangles;
+    const TriangleMesh& finer = st.lv[l - 1].triangles;
+    st.lv[l].triangles = target < finer.vertexCount() ? derived("decimateMesh " + std::to_string(target), finer,
+                                                                [&] { return decimateMesh(finer, target); })
+                                                      : finer;
   }
   for (auto& l : st.lv) l.simplex = simplexFromTriangles(l.triangles);
   if (st.volume) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "msk/core/error.h"
@@ -79,6 +80,12 @@ void checkSegmentOptions(const SegmentOptions& o) {
   checkCount("--substeps", e.substeps, 0, 1000, " (0: the scheme's)");
   checkCount("--iterations", e.iterations, 0, 1000, " (0: the scheme's)");
   checkCount("--threads", e.threads, 0, 1024, " (0: all cores)");
+  {
+    std::error_code ec;
+    const std::string& cache = o.surface.templateCache;
+    if (!cache.empty() && std::filesystem::exists(cache, ec) && !std::filesystem::is_directory(cache, ec))
+      throw ParameterError("--template-cache", cache, "is a file, not a folder");
+  }
   validateSolverOptions(resolveSettings(o, Grid{}).solver);  // dt, damping, drag, ω, k
 
   const ShapeOptions& s = o.shape;

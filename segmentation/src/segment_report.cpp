@@ -210,6 +210,9 @@ Json segmentReport(const SegmentationResult& res, const Scene& scene, const Segm
   report["collision_sets_built"] = res.collisionSetsBuilt;
   report["medial_axes_built"] = res.medialAxesBuilt;
   report["volume_models_built"] = res.volumeModelsBuilt;
+  if (!opts.surface.templateCache.empty())
+    report["template_cache"] = {
+        {"folder", opts.surface.templateCache}, {"hits", res.templateCacheHits}, {"misses", res.templateCacheMisses}};
   Json pairs = Json::array();
   for (size_t k = 0; k < scene.collisions.size(); ++k) {
     const CollisionPair& cp = scene.collisions[k];

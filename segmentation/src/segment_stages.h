@@ -17,6 +17,7 @@
 #include "msk/core/target_constraint.h"
 #include "msk/core/volume_preservation.h"
 #include "msk/core/volume_simplex.h"
+#include "msk/segmentation/mesh_cache.h"
 #include "msk/segmentation/segmenter.h"
 
 namespace msk::detail {
@@ -136,7 +137,8 @@ struct ObjectState {
 /// Builds the resolution levels (remeshed and tetrahedralised where asked), polarity and search settings of one object.
 /// Safe to run for several objects at once when `features` and the objects' profile caches hold the coarsest scale
 /// rs.sigmaMm[0] already (it only reads them then); its warnings go to st.warnings.
-void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features);
+void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features,
+                   MeshCache* templateCache);
 
 /// Moves an object to level `l` (carrying the coarser level's displacement) and builds its constraint sets. The
 /// refinement pass (`refine`, level 0 again) keeps the surface where it is and takes it as the reference shape, with

@@ -210,8 +210,14 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   // The objects' templates (remeshing, levels, tets, polarity) are prepared on the threads: each reads the prepared
   // scales and writes only its own state.
   for (auto& kv : profileCaches) kv.second->prepare({res.settings.sigmaMm[0]}, opts.evolution.threads);
+  std::unique_ptr<MeshCache> templateCache;
+  if (!opts.surface.templateCache.empty()) templateCache = std::make_unique<MeshCache>(opts.surface.templateCache);
   parallelEach(objs.size(), opts.evolution.threads,
-               [&](size_t i) { prepareObject(objs[i], opts, res.settings, features); });
+               [&](size_t i) { prepareObject(objs[i], opts, res.settings, features, templateCache.get()); });
+  if (templateCache) {
+    res.templateCacheHits = templateCache->hits();
+    res.templateCacheMisses = templateCache->misses();
+  }
   for (const ObjectState& st : objs)
     for (const std::string& w : st.warnings) log::warn(w);
   res.secondsPerStage["preparation"] = since(tp);

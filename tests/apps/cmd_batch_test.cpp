@@ -127,6 +127,10 @@ TEST(BatchCli, RunsEveryCaseReportsFailuresAndResumes) {
   EXPECT_EQ(rows[4][1], "ok");
   EXPECT_TRUE(fs::exists(out + "/p03/report.json"));
   EXPECT_FALSE(fs::exists(out + "/.p03.partial999999999"));
+  // The cases share one template cache in the output folder (a bone's template at the fast preset derives nothing;
+  // SegmentCli.MuscleTemplatesAreRemeshedAndTheReportCountsCrossingFaces reuses a remeshed muscle).
+  const msk::Json cache = msk::readJsonFile(out + "/p03/report.json").at("template_cache");
+  EXPECT_EQ(fs::path(cache.at("folder").get<std::string>()), fs::absolute(out) / ".template-cache") << cache.dump();
 }
 
 // A mistake in the batch's own options or in those it forwards to every case is one line, exit code 2 (1 for a

@@ -173,6 +173,26 @@ TEST(SegmentCli, MuscleTemplatesAreRemeshedAndTheReportCountsCrossingFaces) {
     }
     EXPECT_EQ(msk::readMesh(out + "/hamstrings.vtk").vertexCount(), v);
   }
+  // With a template cache: the first run derives the remeshed muscle (and any coarser level) and stores it, the
+  // second reads it, and both write the meshes of the run without it, byte for byte.
+  int derived = 0;
+  for (const char* run : {"cached1", "cached2"}) {
+    const std::string out = dir.file(run);
+    const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--quality",
+                           "fast", "--no-qc", "--template-cache", dir.file("cache")});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const msk::Json cache = msk::readJsonFile(out + "/report.json").at("template_cache");
+    if (std::string(run) == "cached1") {
+      derived = cache.at("misses").get<int>();
+      EXPECT_GE(derived, 1) << cache.dump();
+      EXPECT_EQ(cache.at("hits").get<int>(), 0) << cache.dump();
+    } else {
+      EXPECT_EQ(cache.at("hits").get<int>(), derived) << cache.dump();
+      EXPECT_EQ(cache.at("misses").get<int>(), 0) << cache.dump();
+    }
+    for (const char* mesh : {"/hamstrings.vtk", "/femur.vtk"})
+      EXPECT_EQ(msk::test::readBytes(out + mesh), msk::test::readBytes(dir.file("remeshed") + mesh)) << run << mesh;
+  }
 }
 
 TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
@@ -200,6 +220,8 @@ TEST(SegmentCli, BadInputIsOneLineAndLeavesNoOutput) {
         "need --atlas");  // (the default, each, passes: 3D Slicer sends every parameter)
   check({"segment", "--image", kSample + "image.nii.gz", "--atlas", dir.file("none"), "--out", out, "--starts", "all"},
         2, "--starts");
+  check({"segment", "--image", kSample + "image.nii.gz", "--scene", scene, "--out", out, "--template-cache", scene}, 2,
+        "--template-cache");
 }
 
 // A volumetric object (scene "model": {"volumetric": true}) also gets its tet mesh written as an LPS-tagged .vtu

@@ -142,6 +142,9 @@ struct SurfaceOptions {
   /// Local folds an output surface still has are smoothed away (unfoldSurface()): after the evolution, and after the
   /// output separation (then separated again).
   bool unfoldSurfaces = true;
+  /// A folder where the meshes derived from templates (remeshed, decimated to the coarser levels) are kept and
+  /// reused, bitwise the same (MeshCache); empty: none. It changes no result, only whether they are derived again.
+  std::string templateCache;
 };
 
 /// Settings of one run.

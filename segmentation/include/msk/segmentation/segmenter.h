@@ -99,11 +99,13 @@ struct SegmentationResult {
   std::map<std::string, double> secondsPerStage;
   /// Constraint projection time of the run by family (every object's constraints of the family together), s.
   std::map<std::string, double> secondsPerFamily;
-  int featureScalesBuilt = 0;  ///< distinct image scales computed (each once)
-  int collisionSetsBuilt = 0;  ///< directed vertex–surface collision sets built over all levels (0 without pairs)
-  int volumeModelsBuilt = 0;   ///< objects given a 3-simplex volume model (0 unless a model asks)
-  int medialAxesBuilt = 0;     ///< objects given a medial axis with radial constraints (0 unless a model asks)
-  size_t overlapVoxels = 0;    ///< voxels inside more than one object's surface
+  int featureScalesBuilt = 0;   ///< distinct image scales computed (each once)
+  int templateCacheHits = 0;    ///< template meshes read from SurfaceOptions::templateCache
+  int templateCacheMisses = 0;  ///< template meshes derived and stored there
+  int collisionSetsBuilt = 0;   ///< directed vertex–surface collision sets built over all levels (0 without pairs)
+  int volumeModelsBuilt = 0;    ///< objects given a 3-simplex volume model (0 unless a model asks)
+  int medialAxesBuilt = 0;      ///< objects given a medial axis with radial constraints (0 unless a model asks)
+  size_t overlapVoxels = 0;     ///< voxels inside more than one object's surface
   /// Per declared pair (scene order): the deepest vertex of either output surface inside the other (winding-number
   /// side, mm, 0 if none), measured on the meshes written out.
   std::vector<double> pairPenetrationMm;
