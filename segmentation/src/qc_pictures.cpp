@@ -158,8 +158,7 @@ std::pair<double, double> intensityWindow(const ImageF& image) {
 /// The image sampled on the plane, windowed to grey (black outside the image).
 cv::Mat greySlice(const ImageF& image, const Plane& p, const View& v, std::pair<double, double> window) {
   cv::Mat pic(p.height, p.width, CV_8UC3, cv::Scalar(0, 0, 0));
-  const auto [lo, hi] = window;
-  const double scale = 255.0 / (hi - lo);
+  const double lo = window.first, scale = 255.0 / (window.second - window.first);
   forEachPixelVoxel(image.grid, p, v, [&](int c, int r, const Eigen::Vector3d& ijk) {
     const std::optional<double> s = sampleTrilinearAtVoxel(image, ijk);
     if (!s || !std::isfinite(*s)) return;
