@@ -55,6 +55,12 @@ std::string isoTime(std::time_t t) {
   return buf;
 }
 
+/// Whether `option` (e.g. "--threads") is among the options after --, as "--option VALUE" or "--option=VALUE".
+bool forwardedSets(const std::vector<std::string>& forwarded, const std::string& option) {
+  return std::any_of(forwarded.begin(), forwarded.end(),
+                     [&](const std::string& a) { return a == option || a.rfind(option + "=", 0) == 0; });
+}
+
 /// Starts `mskseg segment` for case `c` with its stdout and stderr in the case's log; returns the child's pid. Unless
 /// the options after -- set --threads, each case gets an equal share of the cores among the `jobs` cases run at once;
 /// unless they set --template-cache, the cases share `templateCache` (results depend on neither, so neither is part of
@@ -69,17 +75,11 @@ pid_t startCase(const std::string& exe, const Case& c, const std::vector<std::st
   }
   if (!c.reference.empty()) args.insert(args.end(), {"--qc-reference", c.reference});  // drawn in its QC pictures
   args.insert(args.end(), forwarded.begin(), forwarded.end());
-  const bool threadsGiven = std::any_of(forwarded.begin(), forwarded.end(), [](const std::string& a) {
-    return a == "--threads" || a.rfind("--threads=", 0) == 0;
-  });
-  if (!threadsGiven) {
+  if (!forwardedSets(forwarded, "--threads")) {
     const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     args.insert(args.end(), {"--threads", std::to_string(std::max(1, cores / std::max(1, jobs)))});
   }
-  const bool cacheGiven = std::any_of(forwarded.begin(), forwarded.end(), [](const std::string& a) {
-    return a == "--template-cache" || a.rfind("--template-cache=", 0) == 0;
-  });
-  if (!cacheGiven) args.insert(args.end(), {"--template-cache", templateCache});
+  if (!forwardedSets(forwarded, "--template-cache")) args.insert(args.end(), {"--template-cache", templateCache});
   std::vector<char*> cargs;
   for (std::string& a : args) cargs.push_back(a.data());
   cargs.push_back(nullptr);

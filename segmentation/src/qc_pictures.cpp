@@ -149,8 +149,9 @@ std::string safeFileName(const std::string& name) {
 
 /// Intensity window on the 1st–99th percentile of the finite voxels.
 std::pair<double, double> intensityWindow(const ImageF& image) {
-  const double lo = percentile(image, 1.0);
-  double hi = percentile(image, 99.0);
+  const std::vector<double> range = percentiles(image, {1.0, 99.0});  // both from one pair of passes
+  const double lo = range[0];
+  double hi = range[1];
   if (!(hi > lo)) hi = lo + 1.0;
   return {lo, hi};
 }
