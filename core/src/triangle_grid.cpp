@@ -12,23 +12,6 @@
 
 namespace msk {
 
-size_t TriangleGrid::cellIndex(int x, int y, int z) const {
-  const Eigen::Vector3i& d = layout_.dims;
-  return (static_cast<size_t>(z) * static_cast<size_t>(d[1]) + static_cast<size_t>(y)) * static_cast<size_t>(d[0]) +
-         static_cast<size_t>(x);
-}
-
-int TriangleGrid::clampedCell(double u, int a) const {
-  const double f = std::floor(u);
-  return !(f >= 0) ? 0 : f >= layout_.dims[a] - 1 ? layout_.dims[a] - 1 : static_cast<int>(f);
-}
-
-Eigen::Vector3i TriangleGrid::cellOf(const Eigen::Vector3d& x) const {
-  Eigen::Vector3i c;
-  for (int a = 0; a < 3; ++a) c[a] = clampedCell((x[a] - layout_.lo[a]) / layout_.cell, a);
-  return c;
-}
-
 void TriangleGrid::build(const Layout& layout, const Points& p, const Triangles& tri) {
   layout_ = layout;
   triangles_ = static_cast<int>(tri.rows());
@@ -131,6 +114,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     to[a] = std::min(clampedCell(u[a] + padCells, a), c[a] + 1);
   }
   double nearestSq = std::numeric_limits<double>::infinity();  // of the triangles examined and passed over
+  bool improved = true;  // the best distance changed since the 4-wide test's limit was set
   // The entry at k: passed over if its triangle was met in an earlier scanned cell; else its box is tested in double
   // (with a margin for rounding, so that a triangle exactly as close, sharing the best one's vertex, always reaches
   // the comparison of keys), then its closest point.
@@ -157,6 +141,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
     }
     const size_t key = keyOf(firstCells_[static_cast<size_t>(t)], t);
     if (d == best.distance && (best.triangle < 0 || key >= bestKey)) return;
+    improved = true;
     best.distance = d;
     best.point = cp;
     best.triangle = t;
@@ -178,6 +163,7 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
   const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
   const __m128i laneIndex = _mm_set_epi32(3, 2, 1, 0);
   __m128 leastPassed = inf;  // per lane: the least float box distance² of the entries passed over
+  __m128 limit = inf;        // the float box distance² beyond which an entry is passed over
 #endif
   for (int z = from[2]; z <= to[2]; ++z)
     for (int y = from[1]; y <= to[1]; ++y)
@@ -187,9 +173,12 @@ SurfacePoint TriangleGrid::closestWithin(const Points& p, const Triangles& tri, 
         const int end = start_[ci + 1];
 #if defined(__SSE2__)
         for (int k = start_[ci]; k < end; k += 4) {
-          const double reach = best.distance + slack;
-          const __m128 limit =
-              _mm_set1_ps(std::nextafter(static_cast<float>(reach * reach), std::numeric_limits<float>::infinity()));
+          if (improved) {
+            const double reach = best.distance + slack;
+            limit =
+                _mm_set1_ps(std::nextafter(static_cast<float>(reach * reach), std::numeric_limits<float>::infinity()));
+            improved = false;
+          }
           const size_t e = static_cast<size_t>(k);
           auto outsideSq = [&](int a, __m128 qa) {
             const __m128 lo = _mm_loadu_ps(&entryLo_[a][e]), hi = _mm_loadu_ps(&entryHi_[a][e]);

@@ -3,6 +3,7 @@
 /// collision partners (a bounded query, rebuilt every step) and of surface transfers (an unbounded query).
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -55,10 +56,21 @@ class TriangleGrid {
 
  private:
   /// The cell holding `x` (clamped to the grid).
-  Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const;
+  Eigen::Vector3i cellOf(const Eigen::Vector3d& x) const {
+    Eigen::Vector3i c;
+    for (int a = 0; a < 3; ++a) c[a] = clampedCell((x[a] - layout_.lo[a]) / layout_.cell, a);
+    return c;
+  }
   /// The cell along axis `a` at `u` cell sizes from the grid's corner, clamped to the grid.
-  int clampedCell(double u, int a) const;
-  size_t cellIndex(int x, int y, int z) const;
+  int clampedCell(double u, int a) const {
+    const double f = std::floor(u);
+    return !(f >= 0) ? 0 : f >= layout_.dims[a] - 1 ? layout_.dims[a] - 1 : static_cast<int>(f);
+  }
+  size_t cellIndex(int x, int y, int z) const {
+    const Eigen::Vector3i& d = layout_.dims;
+    return (static_cast<size_t>(z) * static_cast<size_t>(d[1]) + static_cast<size_t>(y)) * static_cast<size_t>(d[0]) +
+           static_cast<size_t>(x);
+  }
   /// Squared distance from `q` to cell (x, y, z), border cells reaching to infinity outward.
   double cellDistance2(const Eigen::Vector3d& q, int x, int y, int z) const;
   /// A triangle's bounding box in floats rounded outward (a box the exact one lies in, so that a rejection by it is
