@@ -279,9 +279,10 @@ int cmdSegment(const std::vector<std::string>& argv) {
   app.add_flag("--no-object-register", noObjectRegister,
                "with --atlas: the global registration only, no registration of each object's neighbourhood");
   app.add_option("--starts", startsName,
-                 "with --atlas: each (the default: with an atlas of one subject, a run from its placement and from "
-                 "its muscles turned together by -20, -10, +10 and +20 degrees about the long bone they lie on, the "
-                 "run that matched the learned appearance best kept whole; with several subjects, a run from each "
+                 "with --atlas: each (the default: with an atlas of one subject, a run from its placement, from "
+                 "its muscles turned together by -20, -10, +10 and +20 degrees about the long bone they lie on, and "
+                 "from every object at the global placement (without its own registration), the run that matched "
+                 "the learned appearance best kept whole; with several subjects, a run from each "
                  "subject's templates, then one more with each object from the start that matched it best) or "
                  "reference (one run from the reference's templates as placed)")
       ->check(CLI::IsMember({"each", "reference"}));

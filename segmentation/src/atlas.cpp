@@ -778,6 +778,30 @@ std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs) {
   return chosen;
 }
 
+/// `placed` with every object at the global placement, as placeAtlas() leaves it without the objects' own
+/// registrations (an affine map keeps disjoint templates disjoint: no pair to pull apart).
+Placement globalOnly(const Placement& placed) {
+  Placement p = placed;
+  for (ObjectPlacement& o : p.objects) {
+    const std::string name = o.name;
+    o = ObjectPlacement{};
+    o.name = name;
+    o.transform = placed.global;
+    o.note = "started from the global placement (a start of its own)";
+  }
+  for (PairPlacement& pp : p.pairs) pp.overlapPlaced = pp.overlapGlobal;
+  p.seconds = 0;
+  return p;
+}
+
+/// Whether every object of `a` has the transform it has in `b`.
+bool sameTransforms(const Placement& a, const Placement& b) {
+  if (a.objects.size() != b.objects.size()) return false;
+  for (size_t i = 0; i < a.objects.size(); ++i)
+    if (a.objects[i].transform != b.objects[i].transform) return false;
+  return true;
+}
+
 /// The sum of a run's finite profile matches (0 if none has one).
 double matchSum(const AtlasStartRun& run) {
   double sum = 0;
@@ -818,7 +842,11 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
                                    const std::function<void(Scene&)>& beforeRun) {
   const size_t subjects = starts == AtlasStarts::Each ? atlasSubjectCount(atlas) : 1;
   const std::vector<double> twists = atlasStartTwists(atlas, starts);
-  const size_t startCount = subjects * twists.size();
+  // An atlas of one subject also starts every object from the global placement, as if no object had been registered
+  // on its own: an object's neighbourhood may match best where the learned appearance does not (on the real CT and MR
+  // of docs/measurements.md, the muscles), and the run's profile match tells which placement was the better start.
+  const bool globalStart = starts == AtlasStarts::Each && subjects == 1 && placing.registration && placing.perObject;
+  const size_t startCount = subjects * twists.size() + (globalStart ? 1 : 0);
   const bool several = startCount > 1;
   // One subject's turned starts differ only in how far all its muscles on a bone are turned: the run that matched the
   // learned appearance best is the result, whole. Several subjects' starts are each object's own choice, and a final
@@ -847,13 +875,18 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     if (k > 0 && (placing.start || !placing.registration))
       po.start = Eigen::Matrix4d(placing.start.value_or(Eigen::Matrix4d::Identity()) *
                                  atlasReferenceToSubject(atlas, k).inverse());
-    // One placement per subject; its turned starts differ only in their muscles' transforms.
+    // One placement per subject; its turned starts differ only in their muscles' transforms, the global start (after
+    // the turned ones) in every object's.
     Placement placed;
-    for (size_t t = 0; t < twists.size(); ++t) {
+    const size_t subjectStarts = twists.size() + (globalStart ? 1 : 0);
+    for (size_t t = 0; t < subjectStarts; ++t) {
+      const bool global = t == twists.size();
       const size_t index = k * twists.size() + t;
       std::string what;
       if (subjects > 1) what += "subject " + std::to_string(k + 1);
-      if (twists.size() > 1)
+      if (global)
+        what += (what.empty() ? "" : ", ") + std::string("global placement");
+      else if (twists.size() > 1)
         what += (what.empty() ? "" : ", ") + ("turned " + std::to_string(std::lround(twists[t])) + "°");
       const ProgressFn part = share(index, what.empty() ? "" : what + ": ");
       ProgressFn placingPart, segmentPart;
@@ -866,15 +899,17 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       }
       const auto ts = Clock::now();
       if (t == 0) placed = placeAtlas(view, image, po, placingPart);
-      Placement p = placed;
-      if (twists[t] != 0) turnedAboutBone(view, p, twists[t]);
+      Placement p = global ? globalOnly(placed) : placed;
+      if (global && sameTransforms(p, placed)) continue;  // no object kept a placement of its own: the first start
+      if (!global && twists[t] != 0) turnedAboutBone(view, p, twists[t]);
       Scene scene = placedScene(view, p);
       if (beforeRun) beforeRun(scene);
       SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart);
       judgePlacement(p, r);
       AtlasStartRun run;
       run.subject = k;
-      run.twistDegrees = twists[t];
+      run.twistDegrees = global ? 0.0 : twists[t];
+      run.globalPlacement = global;
       for (const ObjectResult& o : r.objects) {
         run.profileMatch.push_back(o.quality.profileMatch);
         run.status.push_back(o.quality.status);
@@ -980,6 +1015,7 @@ Json atlasStartsJson(const AtlasSegmentation& seg, const Scene& scene) {
     Json rj;
     rj["subject"] = r.subject + 1;
     rj["twist_degrees"] = r.twistDegrees;
+    rj["objects_placed"] = r.globalPlacement ? "global placement" : "own registrations";
     if (r.placement.registration) rj["global_metric"] = r.placement.registration->metric;
     rj["seconds"] = r.seconds;
     rj["placement_seconds"] = r.placement.seconds;

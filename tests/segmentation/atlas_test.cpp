@@ -255,8 +255,13 @@ TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   }
   EXPECT_EQ(run.result.overlapVoxels, 0u);
   for (const msk::ObjectResult& o : run.result.objects) EXPECT_EQ(o.selfIntersections, 0u) << o.name;
-  // Five starts, one of them kept whole: the one whose objects' profile matches sum highest.
-  ASSERT_EQ(run.starts.size(), 5u);
+  // Six starts (the five turns, then every object at the global placement), one of them kept whole: the one whose
+  // objects' profile matches sum highest.
+  ASSERT_EQ(run.starts.size(), 6u);
+  for (size_t k = 0; k < 5; ++k) EXPECT_FALSE(run.starts[k].globalPlacement) << k;
+  EXPECT_TRUE(run.starts[5].globalPlacement);
+  for (const msk::ObjectPlacement& o : run.starts[5].placement.objects)
+    EXPECT_TRUE(o.transform == run.starts[5].placement.global) << o.name;
   ASSERT_EQ(run.chosen.size(), 4u);
   auto sum = [](const msk::AtlasStartRun& s) {
     double m = 0;
@@ -265,7 +270,7 @@ TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   };
   for (size_t i = 1; i < run.chosen.size(); ++i) EXPECT_EQ(run.chosen[i], run.chosen[0]) << run.objects[i].name;
   for (const msk::AtlasStartRun& s : run.starts) EXPECT_LE(sum(s), sum(run.starts[run.chosen[0]]));
-  // Progress runs once over the five runs, never back.
+  // Progress runs once over the six runs, never back.
   ASSERT_FALSE(run.progress.empty());
   EXPECT_TRUE(std::is_sorted(run.progress.begin(), run.progress.end()));
   EXPECT_DOUBLE_EQ(run.progress.back(), 1.0);
@@ -313,8 +318,9 @@ TEST(AtlasRoute, MirroredCtOntoTheCtMovedInWorldSpace) {
   const AtlasRun run = msk::test::runAtlasCase(msk::test::ctAtlasCase(data, 15, 40), dir.path());
   ASSERT_EQ(run.objects.size(), 4u);
   // The templates-in-place scene of the same scan (RealScenes.CtFemurHipAndGlutealMusclesOfOneSide) asserts
-  // 0.90 / 0.93 / 0.88 / 0.85.
-  const double floor[] = {0.90, 0.93, 0.85, 0.85};
+  // 0.90 / 0.93 / 0.88 / 0.85. Measured: 0.916 / 0.949 / 0.882 / 0.861, from the start with every object at the global
+  // placement (from the objects' own registrations, 0.918 / 0.948 / 0.866 / 0.862).
+  const double floor[] = {0.90, 0.93, 0.87, 0.85};
   for (size_t i = 0; i < run.objects.size(); ++i)
     EXPECT_GE(run.objects[i].result.dice, floor[i]) << run.objects[i].name;
   EXPECT_EQ(run.result.overlapVoxels, 0u);
@@ -326,8 +332,10 @@ TEST(AtlasRoute, MirroredMrOntoTheMrMovedInWorldSpace) {
   msk::test::ScratchDir dir;
   const AtlasRun run = msk::test::runAtlasCase(msk::test::mrAtlasCase(data, 15, 40), dir.path());
   ASSERT_EQ(run.objects.size(), 3u);
-  EXPECT_GE(run.objects[0].result.dice, 0.87) << run.objects[0].name;
-  EXPECT_GE(run.objects[1].result.dice, 0.87) << run.objects[1].name;
+  // Measured: 0.923 / 0.950 from the start with every object at the global placement (0.887 / 0.948 from the objects'
+  // own registrations); the templates-in-place scene of the same scan reaches 0.921 / 0.940.
+  EXPECT_GE(run.objects[0].result.dice, 0.91) << run.objects[0].name;
+  EXPECT_GE(run.objects[1].result.dice, 0.93) << run.objects[1].name;
   EXPECT_EQ(run.result.overlapVoxels, 0u);
   EXPECT_EQ(run.result.status, msk::QualityStatus::Ok);
 }

@@ -185,9 +185,10 @@ Eigen::Matrix4d atlasReferenceToSubject(const Atlas& atlas, size_t k);
 enum class AtlasStarts {
   Reference,  ///< the reference alone, as placed (one run)
   /// Each subject's templates, placed by that subject's image, evolved with the whole scene. An atlas of one subject
-  /// starts from its placement and with its muscles on a long bone turned together about that bone
-  /// (atlasStartTwists()); the run whose surfaces matched the learned appearance best (the highest sum of the objects'
-  /// profile matches) is the result. An atlas of several subjects: each object then starts a final run from the start
+  /// starts from its placement, with its muscles on a long bone turned together about that bone
+  /// (atlasStartTwists()), and with every object at the global placement (no object's own registration); the run
+  /// whose surfaces matched the learned appearance best (the highest sum of the objects' profile matches) is the
+  /// result. An atlas of several subjects: each object then starts a final run from the start
   /// whose run matched the learned appearance best there (the highest profile match). A compartment's septa lie at
   /// other angles in other subjects, and no one subject's shape, nor their mean, starts every muscle of every new
   /// subject near enough (docs/measurements.md). Costs one run per start, and with several subjects one more.
@@ -214,6 +215,7 @@ int turnedAboutBone(const Atlas& atlas, Placement& placement, double degrees);
 struct AtlasStartRun {
   size_t subject = 0;                 ///< 0-based; 0 the reference
   double twistDegrees = 0;            ///< its muscles' turn about their bone (turnedAboutBone())
+  bool globalPlacement = false;       ///< every object at the global placement (no object's own registration)
   Placement placement;                ///< in the subject's world (atlasFromSubject())
   std::vector<double> profileMatch;   ///< per object, of the run's evolved surface (NaN without the profile force)
   std::vector<QualityStatus> status;  ///< per object (before the output separation where a final run follows)
