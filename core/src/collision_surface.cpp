@@ -18,9 +18,12 @@ long long edgeKey(int a, int b) {
 }
 }  // namespace
 
-CollisionSurface::CollisionSurface(const Triangles& triangles, double reachMm) : tri_(triangles), reach_(reachMm) {
+CollisionSurface::CollisionSurface(const Triangles& triangles, double reachMm, double cellEdges)
+    : tri_(triangles), reach_(reachMm), cellEdges_(cellEdges) {
   if (!(reachMm > 0) || !std::isfinite(reachMm))
     throw ParameterError("collision reach", std::to_string(reachMm), "must be > 0 mm");
+  if (!(cellEdges > 0) || !std::isfinite(cellEdges))
+    throw ParameterError("collision grid cell", std::to_string(cellEdges), "must be > 0 mean edges");
   if (tri_.rows() == 0) return;
   idxLo_ = tri_.minCoeff();
   idxHi_ = tri_.maxCoeff();
@@ -82,13 +85,13 @@ void CollisionSurface::update(const Points& p) {
     hi = hi.cwiseMax(x[0].cwiseMax(x[1]).cwiseMax(x[2]));
     extent += (x[0] - x[1]).norm();
   }
-  // A dense grid over the bounding box grown by the reach; cell size the reach or the typical triangle extent,
-  // whichever is larger (and coarser if the box would need too many cells), so each query scans 27 cells.
+  // A dense grid over the bounding box grown by the reach; cell size the reach or cellEdges_ typical triangle extents,
+  // whichever is larger (and coarser if the box would need too many cells), so each query scans at most 27 cells.
   TriangleGrid::Layout layout;
   layout.lo = lo.array() - reach_;
   boxHi_ = hi.array() + reach_;
   meanEdge_ = extent / nt;
-  layout.cell = std::max(reach_, meanEdge_);
+  layout.cell = std::max(reach_, cellEdges_ * meanEdge_);
   const Eigen::Vector3d size = boxHi_ - layout.lo;
   while ((size / layout.cell).array().ceil().prod() > 4e6) layout.cell *= 1.5;
   layout.dims = (size / layout.cell).array().floor().cast<int>() + 1;

@@ -9,6 +9,11 @@ namespace msk::detail {
 
 namespace {
 
+/// Width of the partners' grid cells in mean triangle edges (at least the contacts' reach): measured on the bundled
+/// thigh (one thread), collision detection took 1.41 s at 1 edge, 1.24 s at 1.5, 1.15–1.19 s at 2–3, 1.21 s at 4,
+/// 1.33 s at 6 and 2.04 s at 10 (docs/measurements.md); fewer cells per query, and fewer cells for the grid's build.
+constexpr double kPartnerCellEdges = 2.5;
+
 /// Detects the contacts of every collision set at positions `p` (between side tests the vertices in contact may follow
 /// their partner triangles: CollisionConstraints::detect()). The sets only read the positions and their shared partner
 /// surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all cores) with
@@ -86,7 +91,7 @@ int LevelSystem::assemble(const Scene& scene, const std::vector<PairContact>& co
       if (it == surfaces_.end()) {
         Triangles t = simplexFanTriangles(objs_[i].current);
         t.array() += objs_[i].first;
-        it = surfaces_.emplace(i, std::make_shared<CollisionSurface>(t, reach.at(i))).first;
+        it = surfaces_.emplace(i, std::make_shared<CollisionSurface>(t, reach.at(i), kPartnerCellEdges)).first;
       }
       return it->second;
     };

@@ -17,8 +17,10 @@ namespace msk {
 /// A partner surface: triangles over global particle indices, queried for closest points and side normals.
 class CollisionSurface {
  public:
-  /// `triangles` (outward, closed) index particles of the stacked system; queries reach `reachMm` (> 0).
-  CollisionSurface(const Triangles& triangles, double reachMm);
+  /// `triangles` (outward, closed) index particles of the stacked system; queries reach `reachMm` (> 0). The grid's
+  /// cells are the reach or `cellEdges` (> 0) times the triangles' mean edge wide, whichever is larger: larger cells
+  /// mean fewer cells per query and more triangles per cell (the same answers either way).
+  CollisionSurface(const Triangles& triangles, double reachMm, double cellEdges = 1.0);
   /// Rebuilds the grid over the triangles at positions `p` (call once per step, before the queries); keeps it, and the
   /// winding number, if the surface's particles have not moved since the last update().
   void update(const Points& p);
@@ -59,6 +61,7 @@ class CollisionSurface {
 
   Triangles tri_;
   double reach_;
+  double cellEdges_;
   int idxLo_ = 0, idxHi_ = -1;  ///< range of the surface's particle indices
   /// The connectivity below, built on the first normal a query needs (most surfaces, as those of each pass of the
   /// output separation, never need one): thread-safe through `topologyBuilt_`.
