@@ -9,9 +9,9 @@ namespace msk::detail {
 
 namespace {
 
-/// Width of the partners' grid cells in mean triangle edges (at least the contacts' reach): measured on the bundled
-/// thigh (one thread), collision detection took 1.41 s at 1 edge, 1.24 s at 1.5, 1.15–1.19 s at 2–3, 1.21 s at 4,
-/// 1.33 s at 6 and 2.04 s at 10 (docs/measurements.md); fewer cells per query, and fewer cells for the grid's build.
+/// Width of the partners' grid cells in mean triangle edges (at least the contacts' reach): wider cells mean fewer
+/// cells per query and per build and more triangles per cell; 2.5 was the fastest of 0.25 to 10 on the bundled thigh
+/// (docs/measurements.md, "Wider grid cells").
 constexpr double kPartnerCellEdges = 2.5;
 
 /// Detects the contacts of every collision set at positions `p` (between side tests the vertices in contact may follow

@@ -314,3 +314,40 @@ TEST(CollisionSurface, WalkFindsTheClosestPointOfAConvexSurfaceAndStaysOnItsShee
   ASSERT_GE(kept.triangle, 0);
   EXPECT_GT(kept.point.z(), 0.45);
 }
+
+// The grid's cell width (in mean edges) changes which cells a query scans, not what it finds: the same distance and
+// point for every query, within the reach and beyond it, and a clearance that still bounds every triangle's distance.
+TEST(CollisionSurface, WiderCellsFindTheSameClosestPoints) {
+  msk::TriangleMesh sphere = msk::makeIcosphere(10, 3, {2, 1, -3});
+  std::mt19937 rng(21);
+  for (int v = 0; v < sphere.vertexCount(); ++v) sphere.vertices.row(v) += 0.3 * uniformVector(rng).transpose();
+  msk::CollisionSurface narrow(sphere.faces, 1.5), wide(sphere.faces, 1.5, 2.5), widest(sphere.faces, 1.5, 8);
+  for (msk::CollisionSurface* s : {&narrow, &wide, &widest}) s->update(sphere.vertices);
+  EXPECT_THROW(msk::CollisionSurface(sphere.faces, 1.5, 0.0), msk::ParameterError);
+  int found = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const Eigen::Vector3d q = Eigen::Vector3d(2, 1, -3) + (7.5 + 5.0 * i / 2000.0) * uniformVector(rng).normalized();
+    const msk::SurfacePoint a = narrow.closest(sphere.vertices, q, 1.5);
+    for (const msk::CollisionSurface* s : {&wide, &widest}) {
+      double clearance = 0;
+      const msk::SurfacePoint b = s->closest(sphere.vertices, q, 1.5, -1, &clearance);
+      ASSERT_EQ(a.triangle >= 0, b.triangle >= 0) << "query " << i;
+      if (a.triangle >= 0) {
+        EXPECT_EQ(a.distance, b.distance) << "query " << i;
+        EXPECT_LT((a.point - b.point).norm(), 1e-12) << "query " << i;
+        continue;
+      }
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int t = 0; t < sphere.faceCount(); ++t)
+        nearest = std::min(nearest, (msk::closestPointOnTriangle(q, sphere.vertices.row(sphere.faces(t, 0)),
+                                                                 sphere.vertices.row(sphere.faces(t, 1)),
+                                                                 sphere.vertices.row(sphere.faces(t, 2))) -
+                                     q)
+                                        .norm());
+      EXPECT_LE(clearance, nearest) << "query " << i;
+    }
+    found += a.triangle >= 0;
+  }
+  EXPECT_GT(found, 400);
+  EXPECT_LT(found, 1600);
+}
