@@ -783,11 +783,14 @@ std::vector<size_t> bestStarts(const std::vector<AtlasStartRun>& runs) {
 Placement globalOnly(const Placement& placed) {
   Placement p = placed;
   for (ObjectPlacement& o : p.objects) {
-    const std::string name = o.name;
-    o = ObjectPlacement{};
-    o.name = name;
-    o.transform = placed.global;
-    o.note = "started from the global placement (a start of its own)";
+    ObjectPlacement g;
+    g.name = o.name;
+    g.transform = placed.global;
+    // Its neighbourhood's metric at the global placement, where its own registration started from there.
+    g.metricBefore = g.metricAfter =
+        o.carriedBy.empty() ? o.metricBefore : std::numeric_limits<double>::quiet_NaN();
+    g.note = "started from the global placement (a start of its own)";
+    o = g;
   }
   for (PairPlacement& pp : p.pairs) pp.overlapPlaced = pp.overlapGlobal;
   p.seconds = 0;
@@ -982,8 +985,8 @@ Json placementJson(const Placement& placement) {
     oj["own_registration_kept"] = o.registered;
     if (!o.note.empty()) oj["note"] = o.note;
     oj["atlas_to_subject_ras"] = matrixJson(o.transform);
-    oj["metric_before"] = o.metricBefore;
-    oj["metric_after"] = o.metricAfter;
+    oj["metric_before"] = std::isfinite(o.metricBefore) ? Json(o.metricBefore) : Json();
+    oj["metric_after"] = std::isfinite(o.metricAfter) ? Json(o.metricAfter) : Json();
     oj["started_from"] = o.carriedBy.empty() ? std::string("global placement") : o.carriedBy;
     oj["own_move_degrees"] = o.moveDegrees;
     oj["own_move_mm"] = o.moveMm;

@@ -120,7 +120,9 @@ struct ObjectPlacement {
   bool keptOutOfPartner = false;  ///< its own registration was undone to keep it out of a collision partner
   bool refusedTooFar = false;     ///< its own registration moved it beyond kMaxOwnTurnDegrees / kMaxOwnMoveMm: refused
   std::string carriedBy;          ///< the bone whose placement it started from ("" : the global placement)
-  double metricBefore = 0, metricAfter = 0;  ///< its neighbourhood's metric at the global and at its own placement
+  /// Its neighbourhood's metric at its start and at its own placement (NaN where not measured: the global start of
+  /// an object that started from its bone's placement).
+  double metricBefore = 0, metricAfter = 0;
   double moveDegrees = 0, moveMm = 0;  ///< its own registration against its start placement (at its template centre)
   double seconds = 0;
 };
