@@ -787,8 +787,7 @@ Placement globalOnly(const Placement& placed) {
     g.name = o.name;
     g.transform = placed.global;
     // Its neighbourhood's metric at the global placement, where its own registration started from there.
-    g.metricBefore = g.metricAfter =
-        o.carriedBy.empty() ? o.metricBefore : std::numeric_limits<double>::quiet_NaN();
+    g.metricBefore = g.metricAfter = o.carriedBy.empty() ? o.metricBefore : std::numeric_limits<double>::quiet_NaN();
     g.note = "started from the global placement (a start of its own)";
     o = g;
   }
