@@ -60,7 +60,8 @@ CollisionConstraints::CollisionConstraints(int firstA, int vertexCount, std::sha
       response_(response),
       dref_(static_cast<size_t>(std::max(vertexCount, 0)), std::numeric_limits<double>::quiet_NaN()),
       hint_(static_cast<size_t>(std::max(vertexCount, 0)), -1),
-      clear_(static_cast<size_t>(std::max(vertexCount, 0))) {
+      clear_(static_cast<size_t>(std::max(vertexCount, 0))),
+      side_(static_cast<size_t>(std::max(vertexCount, 0))) {
   checkContactParameters(gapMm, proximityMm, friction);
   MSK_ASSERT(surface_ && surface_->reach() >= gapMm + proximityMm, "collision surface reach below gap + proximity");
   first_ = firstA;
@@ -94,37 +95,72 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads,
     const WindingNumber* winding = nullptr;  // of B at p (shared with the other sets against B), when a side is needed
     for (int v = begin; v < end; ++v) {
       const Eigen::Vector3d q = p.row(firstA_ + v).transpose();
+      const double tolerance = 1e-9 * (1.0 + q.norm());
+      // Whether the side known at the last detection still holds; from here on `known` is carried to this one with
+      // the lower bound on the distance it finds (or left unknown).
+      Side& known = side_[static_cast<size_t>(v)];
+      if (known.distance > 0 && !(known.distance - (q - known.at).norm() - (travelled - known.travelled) > tolerance))
+        known.distance = 0;
+      const auto carrySide = [&](double distanceAtLeast) {
+        if (known.distance > 0) known = {distanceAtLeast, q, travelled, known.inside};
+      };
       // The triangle found last time starts the search: between detections a vertex moves a fraction of a triangle.
       int& hint = hint_[static_cast<size_t>(v)];
       Clearance& clear = clear_[static_cast<size_t>(v)];
-      if (clear.distance > 0 &&
-          clear.distance - (q - clear.at).norm() - (travelled - clear.travelled) > reach * (1 + 1e-9) + 1e-9) {
-        hint = -1;  // what the query would find
-        continue;
+      if (clear.distance > 0) {
+        const double left = clear.distance - (q - clear.at).norm() - (travelled - clear.travelled);
+        if (left > reach * (1 + 1e-9) + 1e-9) {
+          hint = -1;  // what the query would find
+          carrySide(left);
+          continue;
+        }
       }
       double clearance = 0;
       // Between side tests a vertex that found a partner triangle follows it over the triangles around it where B's
       // triangles are small against the reach (a local answer: the side test's steps scan the grid, which also sees a
       // nearer part of B the walk cannot); the grid is scanned too when the walk finds nothing within the reach.
       SurfacePoint s;
-      if (hint >= 0 && walk) s = surface_->closestAround(p, q, hint, reach);
+      bool walked = false;
+      if (hint >= 0 && walk) {
+        s = surface_->closestAround(p, q, hint, reach);
+        walked = s.triangle >= 0;
+      }
       if (s.triangle < 0) s = surface_->closest(p, q, reach, hint, &clearance);
       hint = s.triangle;
       clear.distance = s.triangle < 0 ? clearance : 0.0;
       clear.at = q;
       clear.travelled = travelled;
-      if (s.triangle < 0) continue;
+      if (s.triangle < 0) {
+        carrySide(clearance);
+        continue;
+      }
       Contact c{v, s.triangle, {s.bary[0], s.bary[1], s.bary[2]}, Eigen::Vector3d::Zero(), s.point - q};
       // Contact normal: the direction from the closest point to the vertex. Without the inside test every vertex is
       // taken to be outside (true when each step starts collision-free), so a correction can never push it through
       // B. With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
       // pseudonormal there can point the wrong way and push the vertex through).
       const Eigen::Vector3d off = q - s.point;
-      if (s.distance > 1e-9 * (1.0 + q.norm())) {
-        if (insideTest && !winding) winding = &surface_->winding(p);
-        const bool inside = insideTest && winding->inside(q);
+      // A walk's distance is a local one, no bound on the distance to all of B: the side is then no longer known.
+      const bool scanned = !walked;
+      if (s.distance > tolerance) {
+        bool inside = false;
+        if (insideTest) {
+          if (!(known.distance > 0 && scanned)) {
+            if (!winding) winding = &surface_->winding(p);
+            known.inside = winding->inside(q);
+          }
+          inside = known.inside;
+          known.distance = s.distance;
+          known.at = q;
+          known.travelled = travelled;
+        } else if (scanned) {
+          carrySide(s.distance);
+        } else {
+          known.distance = 0;
+        }
         c.normal = (inside ? -1.0 : 1.0) * off / s.distance;
       } else {  // on the surface: B's outward side
+        known.distance = 0;
         const Eigen::Vector3d pseudo = surface_->pseudonormal(p, s);
         if (!(pseudo.norm() > 1e-12)) continue;
         c.normal = pseudo.normalized();

@@ -274,6 +274,43 @@ TEST(CollisionConstraints, SkippedQueriesFindWhatAFreshSetFinds) {
   }
 }
 
+// A set that carries its vertices' sides from one side test to the next decides every side as a fresh set does (which
+// takes each from B's winding number), while its vertices cross B in and out between the side tests.
+TEST(CollisionConstraints, SidesCarriedBetweenSideTestsAreTheWindingNumbers) {
+  const msk::TriangleMesh a = msk::makeIcosphere(10, 3), b = msk::makeIcosphere(10, 3, {0.3, -0.2, 0.1});
+  const msk::TriangleMesh both = msk::test::joinedMeshes(a, b);  // A's particles first, then B's
+  const int na = a.vertexCount(), nb = b.vertexCount();
+  const msk::Triangles tb = both.faces.bottomRows(b.faceCount());
+  msk::CollisionConstraints kept(0, na, tb, 0.2, 1.0, 0.0);
+  std::mt19937 rng(4);
+  const Eigen::VectorXd w = Eigen::VectorXd::Ones(na + nb);
+  int compared = 0, inward = 0;
+  for (int step = 0; step < 80; ++step) {
+    // A swells and shrinks through B (radius 10 ± 0.8 mm, a few tenths of a millimetre per step); both jitter.
+    msk::Points p = both.vertices;
+    const double scale = 1.0 + 0.08 * std::sin(0.35 * step);
+    p.topRows(na) *= scale;
+    for (int v = 0; v < na + nb; ++v) p.row(v) += 0.03 * uniformVector(rng).transpose();
+    const bool sideTest = step % 4 == 0;
+    kept.detect(p, sideTest, 1, true);
+    msk::CollisionConstraints fresh(0, na, tb, 0.2, 1.0, 0.0);
+    fresh.detect(p, sideTest);
+    ASSERT_EQ(kept.contacts(), fresh.contacts()) << "step " << step;
+    for (int r = 0; r < kept.rowCount(); ++r) {
+      msk::ConstraintRow rk, rf;
+      const bool hk = kept.row(r, p, w, rk), hf = fresh.row(r, p, w, rf);
+      ASSERT_EQ(hk, hf) << "step " << step << " row " << r;
+      if (!hk) continue;
+      EXPECT_EQ(rk.c, rf.c) << "step " << step << " row " << r;
+      ++compared;
+      const Eigen::Vector3d centreB(0.3, -0.2, 0.1);
+      if (sideTest) inward += (p.row(rk.index[0]).transpose() - centreB).norm() < 9.8;  // a vertex well inside B
+    }
+  }
+  EXPECT_GT(compared, 1000);
+  EXPECT_GT(inward, 100);  // vertices found inside B at side tests, after crossing it in between
+}
+
 // The walk over the triangles around the last one found: on a convex surface it ends at the closest point of the whole
 // surface after the query point has moved; on a surface folded back on itself (two sheets 1 mm apart) it stays on the
 // sheet it started from, which the grid's scan does not.

@@ -121,6 +121,19 @@ class CollisionConstraints : public ConstraintSet {
     double travelled = 0;
   };
   std::vector<Clearance> clear_;
+  /// Per vertex of A, its side of B as of its last detection, while it is known: a lower bound on its distance to B
+  /// then (0 = side not known), where it was, and B's travelled() then. If that distance, less the vertex's move and
+  /// B's travel since, is still above zero, the vertex cannot have met B in between (on the straight path between the
+  /// two configurations), and a closed surface's winding number changes only where a point crosses it: the side holds
+  /// and a side test need not recompute it. Each detection carries the side on with its own bound (the distance a scan
+  /// of B's grid found, or the clearance), so that the bound is that of one step's motion, not of many.
+  struct Side {
+    double distance = 0;
+    Eigen::Vector3d at = Eigen::Vector3d::Zero();
+    double travelled = 0;
+    bool inside = false;
+  };
+  std::vector<Side> side_;
 };
 
 /// Global collision resolution (DESIGN-NOTES §5): the contacts of every member set (all built with
