@@ -49,13 +49,14 @@ class CollisionConstraints : public ConstraintSet {
                        double friction, const CollisionResponse& response = {});
   std::string name() const override { return "collision"; }
   /// Finds, for every vertex of A, the closest point of B within gap + proximity at positions `p`. With `insideTest`
-  /// the side comes from B's winding number (right even where B folds); without it every vertex is taken to be
-  /// outside B, which is exact when the positions are collision-free and costs nothing (use the test where overlaps
-  /// may already exist: first step of a level, clean-up sweeps, reports). `threads` > 1 splits A's vertices over that
-  /// many threads (sets of at least 1024 vertices a thread), with the same result. With `followContacts` and without
-  /// `insideTest`, where B's triangles are small (CollisionSurface::walkPays()), a vertex that found a triangle of B at
-  /// the last detection looks for its closest point by walking from that triangle (CollisionSurface::closestAround(), a
-  /// local answer) instead of scanning B's grid.
+  /// the side comes from B's winding number (right even where B folds; a vertex that provably has not met B since the
+  /// last detection keeps the side it had, which is the winding number's, see side_); without it every vertex is taken
+  /// to be outside B, which is exact when the positions are collision-free and costs nothing (use the test where
+  /// overlaps may already exist: first step of a level, clean-up sweeps, reports). `threads` > 1 splits A's vertices
+  /// over that many threads (sets of at least 1024 vertices a thread), with the same result. With `followContacts` and
+  /// without `insideTest`, where B's triangles are small (CollisionSurface::walkPays()), a vertex that found a triangle
+  /// of B at the last detection looks for its closest point by walking from that triangle
+  /// (CollisionSurface::closestAround(), a local answer) instead of scanning B's grid.
   void detect(const Points& p, bool insideTest = true, int threads = 1, bool followContacts = false);
   /// One row per contact of the last detect(): position mode with sequential resolution, the contact's position
   /// change toward the set's target; velocity and acceleration modes, the spring position correction of a contact
