@@ -9,10 +9,12 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 #include "msk/imaging/surface_extraction.h"
+#include "msk/segmentation/surface_quality.h"
 #include "phantom_model.h"
 #include "phantom_synthesis.h"
 
@@ -172,16 +174,21 @@ std::array<Anatomy, kSegments> meanAnatomies() {
 }
 
 // Templates depend only on the mesh settings: computed once per process and setting.
-std::vector<TriangleMesh> templateMeshes(double h, int vertices, const std::function<void(int)>& objectDone) {
+std::vector<TriangleMesh> templateMeshes(double h, int vertices, bool remeshMuscles,
+                                         const std::function<void(int)>& objectDone) {
   static std::mutex mutex;
-  static std::map<std::pair<double, int>, std::vector<TriangleMesh>> cache;
+  static std::map<std::tuple<double, int, bool>, std::vector<TriangleMesh>> cache;
   std::lock_guard<std::mutex> lock(mutex);
-  auto it = cache.find({h, vertices});
-  if (it == cache.end())
-    it =
-        cache
-            .emplace(std::make_pair(h, vertices), objectMeshes(placeSegments(meanAnatomies()), h, vertices, objectDone))
-            .first;
+  const std::tuple<double, int, bool> key(h, vertices, remeshMuscles);
+  auto it = cache.find(key);
+  if (it == cache.end()) {
+    std::vector<TriangleMesh> meshes = objectMeshes(placeSegments(meanAnatomies()), h, vertices, objectDone);
+    // The muscles' templates are written remeshed, as segment would remesh them (each segment's bone, its first
+    // object, keeps its triangulation), so that segment uses them as they are.
+    for (size_t i = 0; i < meshes.size() && remeshMuscles; ++i)
+      if (i % kObjectsPerSegment != 0) meshes[i] = remeshIsotropic(meshes[i], meshes[i].vertexCount());
+    it = cache.emplace(key, std::move(meshes)).first;
+  }
   return it->second;
 }
 
@@ -240,9 +247,9 @@ Phantom makeMultiPhantom(const PhantomOptions& opts, const ProgressFn& progress)
     const double base = 0.02 + imageShare, share = (1.0 - base) / (2 * kMultiPhantomStructures);
     const std::vector<TriangleMesh> truth = objectMeshes(segments, opts.meshSpacingMm, opts.meshVertices,
                                                          [&](int o) { report(base + share * (o + 1), "meshes"); });
-    const std::vector<TriangleMesh> templ = templateMeshes(opts.meshSpacingMm, opts.meshVertices, [&](int o) {
-      report(base + share * (kMultiPhantomStructures + o + 1), "templates");
-    });
+    const std::vector<TriangleMesh> templ =
+        templateMeshes(opts.meshSpacingMm, opts.meshVertices, opts.remeshMuscleTemplates,
+                       [&](int o) { report(base + share * (kMultiPhantomStructures + o + 1), "templates"); });
     for (size_t o = 0; o < ph.objects.size(); ++o) {
       ph.objects[o].truth = phantom::posedMesh(truth[o], opts.pose);
       ph.objects[o].templ = templ[o];

@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <string>
+#include <tuple>
 #include <utility>
 
 #include "msk/core/error.h"
@@ -14,6 +16,7 @@
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
 #include "msk/imaging/surface_extraction.h"
+#include "msk/segmentation/surface_quality.h"
 #include "phantom_model.h"
 #include "phantom_synthesis.h"
 
@@ -72,14 +75,24 @@ std::vector<TriangleMesh> objectMeshes(const Model& model, double h, int vertice
 }
 
 // Templates depend only on the mesh settings: computed once per process and setting.
-std::vector<TriangleMesh> templateMeshes(double h, int vertices, const std::function<void(int)>& objectDone) {
+std::vector<TriangleMesh> templateMeshes(double h, int vertices, bool remeshMuscles,
+                                         const std::function<void(int)>& objectDone) {
   static std::mutex mutex;
-  static std::map<std::pair<double, int>, std::vector<TriangleMesh>> cache;
+  static std::map<std::tuple<double, int, bool>, std::vector<TriangleMesh>> cache;
   std::lock_guard<std::mutex> lock(mutex);
-  auto it = cache.find({h, vertices});
+  const std::tuple<double, int, bool> key(h, vertices, remeshMuscles);
+  auto it = cache.find(key);
   if (it == cache.end()) {
     const Model mean{phantom::Anatomy{}};
-    it = cache.emplace(std::make_pair(h, vertices), objectMeshes(mean, h, vertices, objectDone)).first;
+    std::vector<TriangleMesh> meshes = objectMeshes(mean, h, vertices, objectDone);
+    // The muscles' templates are written remeshed, as segment would remesh them (bones keep their triangulation), so
+    // that segment uses them as they are.
+    for (int o = 0; o < kObjectCount && remeshMuscles; ++o)
+      if (std::string(kObjects[o].kind) != "bone") {
+        TriangleMesh& m = meshes[static_cast<size_t>(o)];
+        m = remeshIsotropic(m, m.vertexCount());
+      }
+    it = cache.emplace(key, std::move(meshes)).first;
   }
   return it->second;
 }
@@ -141,9 +154,9 @@ Phantom makePhantom(const PhantomOptions& opts, const ProgressFn& progress) {
     const double base = 0.02 + imageShare, share = (1.0 - base) / (2 * kObjectCount);
     const std::vector<TriangleMesh> truth = objectMeshes(model, opts.meshSpacingMm, opts.meshVertices,
                                                          [&](int o) { report(base + share * (o + 1), "meshes"); });
-    const std::vector<TriangleMesh> templ = templateMeshes(opts.meshSpacingMm, opts.meshVertices, [&](int o) {
-      report(base + share * (kObjectCount + o + 1), "templates");
-    });
+    const std::vector<TriangleMesh> templ =
+        templateMeshes(opts.meshSpacingMm, opts.meshVertices, opts.remeshMuscleTemplates,
+                       [&](int o) { report(base + share * (kObjectCount + o + 1), "templates"); });
     for (int o = 0; o < kObjectCount; ++o) {
       ph.objects[static_cast<size_t>(o)].truth = phantom::posedMesh(truth[static_cast<size_t>(o)], opts.pose);
       ph.objects[static_cast<size_t>(o)].templ = templ[static_cast<size_t>(o)];
@@ -215,6 +228,7 @@ void writePhantom(const Phantom& phantom, const PhantomOptions& opts, const std:
   params["bias"] = opts.bias;
   if (opts.fovZ) params["fovZ"] = Json::array({(*opts.fovZ)[0], (*opts.fovZ)[1]});
   params["meshVertices"] = opts.meshVertices;
+  params["muscleTemplatesRemeshed"] = opts.remeshMuscleTemplates;
   params["meshSpace"] = meshSpaceName(opts.meshSpace);
   Scene scene = phantomScene(phantom, dir);
   scene.provenance = params;

@@ -104,10 +104,13 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   st.out.templateVertices = obj.templ.vertexCount();
   // Unless its model says: bones keep their template's triangulation (a bone template made by decimation puts its
   // vertices where the surface bends, condyles and head, which a uniform remesh spreads out: phantom femurs 0.01–0.06
-  // mm more ASSD; they showed no fold without it), muscles and generic objects take the run's. A volumetric object's
-  // surface is its tetrahedralisation's boundary, which the mesher makes of well-shaped facets anyway.
-  st.out.remeshed =
-      obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone) && !obj.model.volumetric;
+  // mm more ASSD; they showed no fold without it), muscles and generic objects take the run's, unless their template
+  // is already isotropic (remeshed when it was made, as the phantom's are: remeshing it again would only move its
+  // vertices). A volumetric object's surface is its tetrahedralisation's boundary, which the mesher makes of
+  // well-shaped facets anyway.
+  st.out.remeshed = obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone &&
+                                              !isotropicTriangulation(obj.templ)) &&
+                    !obj.model.volumetric;
   const int count = obj.templ.vertexCount();
   const TriangleMesh templ = st.out.remeshed ? derived("remeshIsotropic " + std::to_string(count), obj.templ,
                                                        [&] { return remeshIsotropic(obj.templ, count); })

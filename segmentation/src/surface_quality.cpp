@@ -64,6 +64,23 @@ TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices) {
   return mesh;
 }
 
+bool isotropicTriangulation(const TriangleMesh& mesh, double maxVariation) {
+  // Each edge of a closed surface is met twice, once from each of its faces: the same weight for every edge.
+  double sum = 0, sumSq = 0;
+  long count = 0;
+  for (int f = 0; f < mesh.faceCount(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const double l = (mesh.vertices.row(mesh.faces(f, k)) - mesh.vertices.row(mesh.faces(f, (k + 1) % 3))).norm();
+      sum += l;
+      sumSq += l * l;
+      ++count;
+    }
+  if (count == 0) return false;
+  const double mean = sum / static_cast<double>(count);
+  const double variance = std::max(0.0, sumSq / static_cast<double>(count) - mean * mean);
+  return mean > 0 && std::sqrt(variance) < maxVariation * mean;
+}
+
 size_t selfIntersections(const TriangleMesh& mesh) {
   requireClosed(mesh, "selfIntersections");
   return crossingPairs(detail::toCgalMesh(mesh, "selfIntersections")).size();

@@ -11,6 +11,7 @@
 #include "msk/imaging/json.h"
 #include "msk/imaging/mesh_io.h"
 #include "msk/imaging/nifti_io.h"
+#include "msk/segmentation/surface_quality.h"
 #include "msk/test/files.h"
 
 namespace fs = std::filesystem;
@@ -164,6 +165,32 @@ TEST(Cli, ConvertRoundTripsAndRefusesOpenMeshes) {
   EXPECT_FALSE(fs::exists(dir.file("open.vtk")));
   expectOneLineError(runCli({"convert", dir.file("s.vtk"), dir.file("s.xyz")}), 2, "s.xyz", "unsupported");
   expectOneLineError(runCli({"convert", dir.file("s.vtk"), dir.file("s.vtk"), "--mesh-space", "xyz"}), 2, "", "xyz");
+}
+
+// convert --remesh: a template of long thin triangles remeshed isotropically, as segment would remesh it (and then
+// uses it as it is); bad vertex counts refused, nothing written.
+TEST(Cli, ConvertRemeshesATemplateOnce) {
+  ScratchDir dir;
+  msk::TriangleMesh s = msk::makeIcosphere(8, 3);
+  s.vertices.col(2) *= 5.0;
+  msk::writeMesh(dir.file("thin.vtk"), s);
+  ASSERT_FALSE(msk::isotropicTriangulation(s));
+  CliResult c = runCli({"convert", dir.file("thin.vtk"), dir.file("iso.vtk"), "--remesh", "0"});
+  ASSERT_EQ(c.exitCode, 0) << c.err;
+  EXPECT_NE(c.out.find("remeshed"), std::string::npos) << c.out;
+  const msk::TriangleMesh iso = msk::readMesh(dir.file("iso.vtk"));
+  EXPECT_TRUE(msk::isotropicTriangulation(iso));
+  const msk::TriangleMesh expected = msk::remeshIsotropic(msk::readMesh(dir.file("thin.vtk")), s.vertexCount());
+  EXPECT_EQ(iso.faces, expected.faces);
+  EXPECT_LT((iso.vertices - expected.vertices).cwiseAbs().maxCoeff(), 1e-12);
+  CliResult n = runCli({"convert", dir.file("thin.vtk"), dir.file("n.vtk"), "--remesh", "500"});
+  ASSERT_EQ(n.exitCode, 0) << n.err;
+  EXPECT_NEAR(msk::readMesh(dir.file("n.vtk")).vertexCount(), 500, 100);
+  for (const char* bad : {"2", "-1", "20000000"}) {
+    expectOneLineError(runCli({"convert", dir.file("thin.vtk"), dir.file("bad.vtk"), "--remesh", bad}), 2, "--remesh",
+                       bad);
+    EXPECT_FALSE(fs::exists(dir.file("bad.vtk")));
+  }
 }
 
 TEST(Cli, PhantomRasterizeEvalPipeline) {

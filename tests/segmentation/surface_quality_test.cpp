@@ -9,7 +9,9 @@
 #include <vector>
 
 #include "msk/core/error.h"
+#include "msk/imaging/mesh_io.h"
 #include "msk/segmentation/metrics.h"
+#include "msk/test/files.h"
 
 namespace {
 
@@ -108,4 +110,17 @@ TEST(SurfaceQuality, UnfoldingRemovesALocalFoldAndMovesOnlyItsNeighbourhood) {
   EXPECT_EQ(none.before, 0u);
   EXPECT_EQ(none.verticesMoved, 0);
   EXPECT_EQ((sphere.vertices - msk::makeIcosphere(10, 3).vertices).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// A remeshed surface counts as isotropic and is not remeshed again by segment; a decimated one (the thin triangles of a
+// stretched sphere, the bundled phantom's decimated femur) does not.
+TEST(SurfaceQuality, IsotropicTriangulationTellsARemeshedSurfaceFromADecimatedOne) {
+  const msk::TriangleMesh stretched = stretchedSphere();
+  EXPECT_FALSE(msk::isotropicTriangulation(stretched));
+  EXPECT_TRUE(msk::isotropicTriangulation(msk::remeshIsotropic(stretched, 2000)));
+  EXPECT_TRUE(msk::isotropicTriangulation(msk::makeIcosphere(10, 3)));
+  const msk::TriangleMesh femur = msk::readMesh(msk::test::bundledSample() + "template_femur.vtk");
+  EXPECT_FALSE(msk::isotropicTriangulation(femur));
+  EXPECT_TRUE(msk::isotropicTriangulation(msk::remeshIsotropic(femur, femur.vertexCount())));
+  EXPECT_FALSE(msk::isotropicTriangulation(msk::TriangleMesh()));
 }

@@ -26,8 +26,11 @@ struct PhantomOptions {
   /// z range (mm, lo < hi) of the un-posed field of view, clipped to the phantom's own (which holds the whole
   /// anatomy): a shorter range cuts bones and muscles as a short scan does. Unset: the phantom's own range.
   std::optional<Eigen::Vector2d> fovZ;
-  bool meshes = true;          ///< compute truth and template meshes (false: image, labels and tissues only; faster)
-  int meshVertices = 3000;     ///< target vertex count of each truth and template mesh
+  bool meshes = true;       ///< compute truth and template meshes (false: image, labels and tissues only; faster)
+  int meshVertices = 3000;  ///< target vertex count of each truth and template mesh
+  /// The muscles' templates remeshed isotropically to their vertex count, as segment remeshes a muscle's template
+  /// (then uses them as they are); false: decimated, as the bones' templates and the truth meshes are.
+  bool remeshMuscleTemplates = true;
   double meshSpacingMm = 0.8;  ///< step of the fine grid on which the implicit surfaces are sampled for meshing
   MeshSpace meshSpace = MeshSpace::LPS;  ///< space the mesh files are written in (tagged)
 };

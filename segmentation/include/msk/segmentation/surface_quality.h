@@ -16,6 +16,11 @@ namespace msk {
 /// returned unchanged if none passes. Throws Error if the input is not closed, ParameterError if targetVertices < 4.
 TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices);
 
+/// Whether the triangles of a surface are already near-equilateral and of one size, as remeshIsotropic() leaves them:
+/// the coefficient of variation of its edge lengths is below `maxVariation` (remeshed templates about 0.15, decimated
+/// isosurfaces 0.7–0.9). Remeshing such a surface again moves its vertices without making its triangles better.
+bool isotropicTriangulation(const TriangleMesh& mesh, double maxVariation = 0.3);
+
 /// Number of pairs of faces of a closed mesh that intersect other than at a vertex or edge they share (CGAL box
 /// intersection with exact predicates). 0 for a surface that is embedded. Throws Error if the mesh is not closed.
 size_t selfIntersections(const TriangleMesh& mesh);
