@@ -32,7 +32,8 @@ int cmdPhantom(const std::vector<std::string>& argv) {
   CommandLine app(
       "phantom",
       "Writes a synthetic T1-weighted thigh MRI with exact ground truth into OUT: image.nii.gz, labels.nii.gz, "
-      "truth_<name>.vtk (this seed's anatomy), template_<name>.vtk (mean anatomy) and scene.json. Anatomy "
+      "truth_<name>.vtk (this seed's anatomy), template_<name>.vtk (mean anatomy; the muscles' remeshed "
+      "isotropically, as segment would remesh them) and scene.json. Anatomy "
       "(position, bend, radii, twist, septa) varies with the seed.");
   PhantomOptions opts;
   std::string out;

@@ -138,16 +138,33 @@ TEST(SegmentCli, ImagesThatCannotCarryASegmentationAreRefused) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// A muscle's template is remeshed before the evolution (its output then has about the template's vertex count on
-// another triangulation), a bone's is not; --keep-template-mesh keeps the muscle's too. The report says what was done
-// and how many face pairs of each written surface cross each other (none here).
+// A muscle's decimated template is remeshed before the evolution (its output then has about the template's vertex
+// count on another triangulation), a bone's is not; --keep-template-mesh keeps the muscle's too; a muscle's template
+// that is already isotropic (the bundled one, remeshed when it was written) is used as it is. The report says what was
+// done and how many face pairs of each written surface cross each other (none here).
 TEST(SegmentCli, MuscleTemplatesAreRemeshedAndTheReportCountsCrossingFaces) {
   msk::test::ScratchDir dir;
-  const std::string scene = dir.file("scene.json");
-  msk::test::writeBytes(
-      scene, "{\"objects\": [{\"name\": \"femur\", \"label\": 1, \"kind\": \"bone\", \"template\": \"" + kSample +
-                 "template_femur.vtk\"}, {\"name\": \"hamstrings\", \"label\": 3, " +
-                 "\"kind\": \"muscle\", \"template\": \"" + kSample + "template_hamstrings.vtk\"}]}");
+  const std::string decimated = dir.file("hamstrings_decimated.vtk");
+  const auto t = runCli({"template", "--labels", kSample + "labels.nii.gz", "--label", "3", "--out", decimated});
+  ASSERT_EQ(t.exitCode, 0) << t.err;
+  auto sceneWith = [&](const std::string& file, const std::string& hamstrings) {
+    msk::test::writeBytes(
+        file, "{\"objects\": [{\"name\": \"femur\", \"label\": 1, \"kind\": \"bone\", \"template\": \"" + kSample +
+                  "template_femur.vtk\"}, {\"name\": \"hamstrings\", \"label\": 3, " +
+                  "\"kind\": \"muscle\", \"template\": \"" + hamstrings + "\"}]}");
+    return file;
+  };
+  const std::string scene = sceneWith(dir.file("scene.json"), decimated);
+  {
+    const std::string out = dir.file("isotropic");
+    const auto r = runCli({"segment", "--image", kSample + "image.nii.gz", "--scene",
+                           sceneWith(dir.file("bundled.json"), kSample + "template_hamstrings.vtk"), "--out", out,
+                           "--quality", "fast", "--no-qc"});
+    ASSERT_EQ(r.exitCode, 0) << r.err;
+    const msk::Json muscle = msk::readJsonFile(out + "/report.json").at("objects")[1];
+    EXPECT_FALSE(muscle.at("template_remeshed").get<bool>());
+    EXPECT_EQ(muscle.at("vertices").get<int>(), muscle.at("template_vertices").get<int>());
+  }
   for (bool keep : {false, true}) {
     const std::string out = dir.file(keep ? "kept" : "remeshed");
     std::vector<std::string> args = {

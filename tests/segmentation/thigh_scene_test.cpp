@@ -3,6 +3,8 @@
 // with bench/phantom_bench.cpp, which reports its figures (BM_ThighScene).
 #include <gtest/gtest.h>
 
+#include "msk/phantom/phantom.h"
+#include "msk/segmentation/surface_quality.h"
 #include "msk/test/phantom_scenarios.h"
 
 namespace {
@@ -14,6 +16,20 @@ msk::test::ThighRun segment(const msk::test::BundledThigh& thigh, bool collision
   opts.surface.remeshTemplates = remeshMuscles;
   opts.surface.unfoldSurfaces = unfold;
   return msk::test::segmentThigh(thigh, thigh.scene, opts);
+}
+
+/// The bundled thigh scene with the muscles' templates decimated (the bundled ones are remeshed, as the phantom writes
+/// them): the phantom's mean-anatomy templates without the remeshing.
+msk::test::BundledThigh withDecimatedMuscleTemplates() {
+  msk::test::BundledThigh thigh = msk::test::loadBundledThigh();
+  msk::PhantomOptions po;
+  po.seed = 1;
+  po.remeshMuscleTemplates = false;
+  const msk::Phantom ph = msk::makePhantom(po);
+  for (msk::SceneObject& o : thigh.scene.objects)
+    for (const msk::PhantomObject& p : ph.objects)
+      if (p.name == o.name && o.kind != msk::ObjectKind::Bone) o.templ = p.templ;
+  return thigh;
 }
 
 }  // namespace
@@ -54,7 +70,9 @@ TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
 // 256 / 369 / 342 face pairs, without the unfolding; the femur, whose template is kept either way, none); remeshed,
 // none, for the same accuracy (the test above). SurfaceOptions::remeshTemplates, docs/method.md (Surface quality).
 TEST(ThighScene, MusclesKeptOnTheirDecimatedTemplatesFoldOntoThemselves) {
-  const msk::test::ThighRun kept = segment(msk::test::loadBundledThigh(), true, false, false);
+  const msk::test::BundledThigh thigh = withDecimatedMuscleTemplates();
+  for (const msk::SceneObject& o : thigh.scene.objects) EXPECT_FALSE(msk::isotropicTriangulation(o.templ)) << o.name;
+  const msk::test::ThighRun kept = segment(thigh, true, false, false);
   for (const msk::ObjectResult& o : kept.res.objects) {
     EXPECT_FALSE(o.remeshed) << o.name;
     if (o.name == "femur")
@@ -62,4 +80,27 @@ TEST(ThighScene, MusclesKeptOnTheirDecimatedTemplatesFoldOntoThemselves) {
     else
       EXPECT_GT(o.selfIntersections, 50u) << o.name;
   }
+}
+
+// A muscle template remeshed beforehand (as the phantom writes them, or `mskseg convert --remesh`) is used as it is:
+// the same triangulation, and outputs bitwise the same, as when segment remeshes the decimated template itself.
+TEST(ThighScene, MuscleTemplatesRemeshedBeforehandAreUsedAsTheyAre) {
+  const msk::test::BundledThigh decimated = withDecimatedMuscleTemplates();
+  msk::test::BundledThigh remeshed = decimated;
+  for (msk::SceneObject& o : remeshed.scene.objects)
+    if (o.kind != msk::ObjectKind::Bone) o.templ = msk::remeshIsotropic(o.templ, o.templ.vertexCount());
+  const msk::test::ThighRun a = segment(decimated, true), b = segment(remeshed, true);
+  ASSERT_EQ(a.res.objects.size(), b.res.objects.size());
+  for (size_t i = 0; i < a.res.objects.size(); ++i) {
+    const msk::ObjectResult &x = a.res.objects[i], &y = b.res.objects[i];
+    EXPECT_EQ(x.remeshed, x.name != "femur") << x.name;
+    EXPECT_FALSE(y.remeshed) << y.name;
+    EXPECT_EQ(x.polarity, y.polarity) << x.name;
+    ASSERT_EQ(x.mesh.faces, y.mesh.faces) << x.name;
+    EXPECT_EQ(x.mesh.vertices, y.mesh.vertices) << x.name;
+  }
+  EXPECT_TRUE(a.res.labels.data == b.res.labels.data);
+  // The bundled scene's muscle templates are the remeshed kind.
+  for (const msk::SceneObject& o : msk::test::loadBundledThigh().scene.objects)
+    EXPECT_EQ(msk::isotropicTriangulation(o.templ), o.kind != msk::ObjectKind::Bone) << o.name;
 }
