@@ -17,7 +17,7 @@ namespace msk {
 TriangleMesh remeshIsotropic(const TriangleMesh& mesh, int targetVertices);
 
 /// Whether the triangles of a surface are already near-equilateral and of one size, as remeshIsotropic() leaves them:
-/// the coefficient of variation of its edge lengths is below `maxVariation` (remeshed templates about 0.15, decimated
+/// the coefficient of variation of its edge lengths is below `maxVariation` (remeshed templates about 0.14, decimated
 /// isosurfaces 0.7–0.9). Remeshing such a surface again moves its vertices without making its triangles better.
 bool isotropicTriangulation(const TriangleMesh& mesh, double maxVariation = 0.3);
 
