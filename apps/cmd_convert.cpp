@@ -30,11 +30,7 @@ int cmdConvert(const std::vector<std::string>& argv) {
   MeshSpace inSpace = MeshSpace::LPS;
   TriangleMesh m = readMesh(in, &inSpace);
   const int inVertices = m.vertexCount(), inFaces = m.faceCount();
-  if (app.count("--remesh")) {
-    const std::string problem = closedMeshProblem(m);
-    if (!problem.empty()) throw Error(in + ": cannot remesh a surface that is not closed: " + problem);
-    m = remeshIsotropic(m, remesh > 0 ? remesh : m.vertexCount());
-  }
+  if (app.count("--remesh")) m = remeshIsotropic(m, remesh > 0 ? remesh : m.vertexCount());  // readMesh: closed
   writeMesh(out, m, space);
   std::cout << in << " (" << meshSpaceName(inSpace) << ", " << inVertices << " vertices, " << inFaces << " faces) -> "
             << out << " (" << meshSpaceName(space);

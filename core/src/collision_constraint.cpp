@@ -140,23 +140,19 @@ void CollisionConstraints::detect(const Points& p, bool insideTest, int threads,
       // B. With it, the side comes from B's winding number, which stays right where B folds or is stretched (a face or
       // pseudonormal there can point the wrong way and push the vertex through).
       const Eigen::Vector3d off = q - s.point;
-      // A walk's distance is a local one, no bound on the distance to all of B: the side is then no longer known.
-      const bool scanned = !walked;
       if (s.distance > tolerance) {
         bool inside = false;
-        if (insideTest) {
-          if (!(known.distance > 0 && scanned)) {
+        if (insideTest) {  // a side test scans the grid (no walk): s.distance is the distance to all of B
+          if (!(known.distance > 0)) {
             if (!winding) winding = &surface_->winding(p);
             known.inside = winding->inside(q);
           }
           inside = known.inside;
-          known.distance = s.distance;
-          known.at = q;
-          known.travelled = travelled;
-        } else if (scanned) {
-          carrySide(s.distance);
+          known = {s.distance, q, travelled, inside};
+        } else if (walked) {
+          known.distance = 0;  // a walk's distance is a local one, no bound on the distance to all of B
         } else {
-          known.distance = 0;
+          carrySide(s.distance);
         }
         c.normal = (inside ? -1.0 : 1.0) * off / s.distance;
       } else {  // on the surface: B's outward side
