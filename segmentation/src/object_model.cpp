@@ -90,6 +90,22 @@ Points ObjectState::bentByStage(const Points& templ) const {
   return GeneralisedCylinder(templ, stageAxisRef, attachToAxis(templ, stageAxisRef)).surface(stageAxis);
 }
 
+}  // namespace msk::detail
+
+namespace msk {
+
+bool remeshesTemplate(const SceneObject& obj, const SegmentOptions& opts) {
+  return obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone &&
+                                   !isotropicTriangulation(obj.templ)) &&
+         !obj.model.volumetric;
+}
+
+TriangleMesh remeshedTemplate(const SceneObject& obj) { return remeshIsotropic(obj.templ, obj.templ.vertexCount()); }
+
+}  // namespace msk
+
+namespace msk::detail {
+
 void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSettings& rs, FeatureCache& features,
                    MeshCache* templateCache) {
   const SceneObject& obj = *st.obj;
@@ -108,12 +124,9 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // is already isotropic (remeshed when it was made, as the phantom's are: remeshing it again would only move its
   // vertices). A volumetric object's surface is its tetrahedralisation's boundary, which the mesher makes of
   // well-shaped facets anyway.
-  st.out.remeshed = obj.model.remesh.value_or(opts.surface.remeshTemplates && obj.kind != ObjectKind::Bone &&
-                                              !isotropicTriangulation(obj.templ)) &&
-                    !obj.model.volumetric;
-  const int count = obj.templ.vertexCount();
-  const TriangleMesh templ = st.out.remeshed ? derived("remeshIsotropic " + std::to_string(count), obj.templ,
-                                                       [&] { return remeshIsotropic(obj.templ, count); })
+  st.out.remeshed = remeshesTemplate(obj, opts);
+  const TriangleMesh templ = st.out.remeshed ? derived("remeshIsotropic " + std::to_string(obj.templ.vertexCount()),
+                                                       obj.templ, [&] { return remeshedTemplate(obj); })
                                              : obj.templ;
   // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
   st.lv.resize(static_cast<size_t>(rs.levels));

@@ -77,7 +77,8 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
   const int coarsest = rs.levels - 1;
   const bool anyRefines =
       std::any_of(objs.begin(), objs.end(), [&](const ObjectState& st) { return st.refines(opts); });
-  const int passes = rs.levels + (anyRefines ? 1 : 0);
+  const bool coarseOnly = opts.evolution.coarseOnly && rs.levels > 1;
+  const int passes = coarseOnly ? rs.levels : rs.levels + (anyRefines ? 1 : 0);
   const int totalSteps = passes * rs.maxStepsPerLevel;
   const int rampSteps = rs.levels * rs.maxStepsPerLevel;  // the prior's ramp spans the levels; refinement is at its end
   int stepsDone = 0;
@@ -103,8 +104,12 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
     solver.prepare(system.positions(), system.inverseMass());
     const std::string stage =
         refine ? std::string("refinement") : "level " + std::to_string(order + 1) + "/" + std::to_string(rs.levels);
-    LevelReport rep = runSteps(objs, fixed, system, solver, opts, rs, feat, focus, grid, stepsDone, rampSteps,
-                               totalSteps, stage, progress, detectSeconds);
+    // Coarse levels only: the finest level is entered (its surface carries the coarser displacement), not evolved.
+    LevelReport rep;
+    rep.settleToleranceMm = rs.toleranceMm;
+    if (!(coarseOnly && l == 0))
+      rep = runSteps(objs, fixed, system, solver, opts, rs, feat, focus, grid, stepsDone, rampSteps, totalSteps, stage,
+                     progress, detectSeconds);
     rep.sigmaMm = sigmaMm;
     rep.rangeMm = rs.rangeMm[order];
     rep.refinement = refine;

@@ -112,6 +112,29 @@ TEST(AtlasCli, BrokenAtlasFoldersAreOneLineNamingTheFileAndNothingIsWritten) {
   EXPECT_FALSE(fs::exists(out)) << "partial output";
 }
 
+// The atlas's muscle templates are remeshed once per case, before the placement, through the template cache: a
+// second case with the same cache reads them instead (three hits, no miss) and writes the same bytes; the report says
+// each muscle's template was remeshed, the femur's not.
+TEST(AtlasCli, TemplatesAreRemeshedOnceThroughTheTemplateCache) {
+  ScratchDir dir;
+  const std::string atlas = buildSampleAtlas(dir), cache = dir.file("cache");
+  auto segment = [&](const std::string& out) {
+    const CliResult r =
+        runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", atlas, "--out", out, "--quality", "fast",
+                "--starts", "reference", "--no-qc", "--template-cache", cache, "--quiet"});
+    EXPECT_EQ(r.exitCode, 0) << r.err;
+    return msk::readJsonFile(out + "/report.json");
+  };
+  const msk::Json first = segment(dir.file("first")), second = segment(dir.file("second"));
+  EXPECT_EQ(first["template_cache"]["misses"], 3) << first["template_cache"].dump();
+  EXPECT_EQ(first["template_cache"]["hits"], 0) << first["template_cache"].dump();
+  EXPECT_EQ(second["template_cache"]["misses"], 0) << second["template_cache"].dump();
+  EXPECT_EQ(second["template_cache"]["hits"], 3) << second["template_cache"].dump();
+  for (const msk::Json& o : second["objects"]) EXPECT_EQ(o["template_remeshed"], o["name"] != "femur") << o["name"];
+  EXPECT_EQ(msk::sha256File(dir.file("first") + "/labels.nii.gz"),
+            msk::sha256File(dir.file("second") + "/labels.nii.gz"));
+}
+
 // Two subjects: the bundled sample and phantom seed 3 posed. Every object gets a fitted template on the second subject
 // (close to its labels' surface), the femur the two subjects' mean shape, the muscles the reference's own; the scene
 // learns its profiles on both; every file is checksummed, a changed subject surface is refused, and the atlas

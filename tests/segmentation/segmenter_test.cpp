@@ -393,3 +393,34 @@ TEST(Segmenter, RefinementPassFinishesTheRefiningObjectAndLeavesTheOthers) {
   EXPECT_EQ(refined.objects[1].levels.size(), plain.objects[1].levels.size());
   EXPECT_EQ((refined.objects[1].mesh.vertices - plain.objects[1].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
 }
+
+// Coarse levels only (EvolutionOptions::coarseOnly): the coarse level evolves, the finest is entered (its surface
+// carries the coarse level's displacement, at the finest resolution) and not evolved, and nothing is refined. From 3 mm
+// outside a ball the surface ends near it at the template's own resolution, at a fraction of the steps; with one level
+// the option changes nothing.
+TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
+  const double r = 20.0;
+  const msk::Grid g = cubeGrid(1.0, 32);
+  const Eigen::Vector3d c(0.7, -0.4, 0.3);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
+  scene.objects[0].model.refine = true;
+  msk::SegmentOptions opts;
+  const msk::SegmentationResult full = msk::segmentScene(img, scene, opts);
+  opts.evolution.coarseOnly = true;
+  const msk::SegmentationResult coarse = msk::segmentScene(img, scene, opts);
+  ASSERT_EQ(full.objects[0].levels.size(), 3u);  // two levels and the refinement
+  ASSERT_EQ(coarse.objects[0].levels.size(), 2u);
+  EXPECT_GT(coarse.objects[0].levels[0].steps, 0);
+  EXPECT_EQ(coarse.objects[0].levels[0].steps, full.objects[0].levels[0].steps);
+  EXPECT_EQ(coarse.objects[0].levels[1].steps, 0);
+  EXPECT_EQ(coarse.objects[0].mesh.vertexCount(), full.objects[0].mesh.vertexCount());
+  const double coarseErr = meanRadialError(coarse.objects[0].mesh, c, r);
+  EXPECT_LT(coarseErr, 1.0);  // from 3 mm
+  EXPECT_GT(coarseErr, meanRadialError(full.objects[0].mesh, c, r));
+  opts.evolution.quality = msk::Quality::Fast;  // one level
+  const msk::SegmentationResult oneLevel = msk::segmentScene(img, scene, opts);
+  opts.evolution.coarseOnly = false;
+  const msk::SegmentationResult oneLevelFull = msk::segmentScene(img, scene, opts);
+  EXPECT_EQ((oneLevel.objects[0].mesh.vertices - oneLevelFull.objects[0].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
+}

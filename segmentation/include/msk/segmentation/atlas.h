@@ -218,6 +218,7 @@ struct AtlasStartRun {
   size_t subject = 0;                 ///< 0-based; 0 the reference
   double twistDegrees = 0;            ///< its muscles' turn about their bone (turnedAboutBone())
   bool globalPlacement = false;       ///< every object at the global placement (no object's own registration)
+  bool coarseLevelsOnly = false;      ///< its run evolved the coarse levels only (EvolutionOptions::coarseOnly)
   Placement placement;                ///< in the subject's world (atlasFromSubject())
   std::vector<double> profileMatch;   ///< per object, of the run's evolved surface (NaN without the profile force)
   std::vector<QualityStatus> status;  ///< per object (before the output separation where a final run follows)
@@ -237,9 +238,12 @@ struct AtlasSegmentation {
 };
 
 /// Places `atlas` in `image` and segments it: from the reference alone, or (AtlasStarts::Each) from each start of
-/// atlasStartTwists() of each subject and then from each object's best start. `beforeRun` sees each placed scene before
-/// its run, to change it (e.g. a test's refinement flags) or refuse it by throwing (e.g. templates outside the image).
-/// Progress runs once over all runs.
+/// atlasStartTwists() of each subject and then from each object's best start. Templates a run would remesh are
+/// remeshed once, in the atlas's space, before the placement. Several starts evolve their coarse levels only where the
+/// run has more than one level (AtlasStartRun::coarseLevelsOnly), and a final run evolves the kept starts whole; with
+/// one level each start's run is whole and, for one subject's turned starts, the best is the result. `beforeRun` sees
+/// each placed scene before its run, to change it (e.g. a test's refinement flags) or refuse it by throwing (e.g.
+/// templates outside the image). Progress runs once over all runs.
 AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, const PlacementOptions& placing,
                                    const SegmentOptions& opts, AtlasStarts starts, const ProgressFn& progress = {},
                                    const std::function<void(Scene&)>& beforeRun = {});

@@ -44,6 +44,10 @@ struct EvolutionOptions {
   double drag = 0.5;           ///< share of the remaining velocity removed per step, [0, 1]
   double xpbdStiffness = 4.0;  ///< XPBD k, mass-relative (XpbdStiffness::MassRelative): k × the force stiffness
   double jacobiOmega = 1.5;    ///< Jacobi relaxation ω ∈ (0, 2)
+  /// Evolve only the levels coarser than the finest: the finest level's surface takes the coarser one's displacement
+  /// (as on entering it) and is not evolved, nor refined; the clean-up sweeps still run. A quick look at where a start
+  /// leads (the atlas's starts are compared on it). No effect with one level.
+  bool coarseOnly = false;
 };
 
 /// Each object's shape constraints: its template shape memory and the global shape prior.

@@ -133,6 +133,12 @@ constexpr double kMinTemplateShareInImage = 0.25;
 /// the image (templateShareInImage() < kMinTemplateShareInImage), named with its share.
 std::string coverageProblem(const Grid& grid, const Scene& scene);
 
+/// Whether a run remeshes `obj`'s template before evolving it (SurfaceOptions::remeshTemplates, the object's
+/// "remesh"; a template already isotropic is used as it is), and the remeshing it gets: isotropic, to the template's
+/// own vertex count.
+bool remeshesTemplate(const SceneObject& obj, const SegmentOptions& opts);
+TriangleMesh remeshedTemplate(const SceneObject& obj);
+
 /// Segments every object of the scene in `image` (RAS mm). Throws ParameterError for options out of range
 /// (checkSegmentOptions()) and Error on bad input (imageProblem(), coverageProblem(), an empty scene) before doing
 /// any work.
