@@ -79,7 +79,7 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
       std::any_of(objs.begin(), objs.end(), [&](const ObjectState& st) { return st.refines(opts); });
   const bool coarseOnly = opts.evolution.coarseOnly && rs.levels > 1;
   const int passes = coarseOnly ? rs.levels : rs.levels + (anyRefines ? 1 : 0);
-  const int totalSteps = passes * rs.maxStepsPerLevel;
+  const int totalSteps = (coarseOnly ? rs.levels - 1 : passes) * rs.maxStepsPerLevel;  // the steps progress counts
   const int rampSteps = rs.levels * rs.maxStepsPerLevel;  // the prior's ramp spans the levels; refinement is at its end
   int stepsDone = 0;
   double detectSeconds = 0;
