@@ -227,16 +227,19 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
     for (const std::string& w : st.warnings) log::warn(w);
   res.secondsPerStage["preparation"] = since(tp);
   const double detectSeconds = evolve(objs, res, scene, contacts, opts, features, image.grid, progress);
+  // A run of the coarse levels only is a look at where they lead, not an output: its surfaces are neither unfolded nor
+  // separated, and no labels are rasterised (EvolutionOptions::coarseOnly).
+  const bool look = opts.evolution.coarseOnly && res.settings.levels > 1;
   // Each object's output surface on the threads (each writes only its own state).
   parallelEach(objs.size(), opts.evolution.threads,
-               [&](size_t i) { finishObject(objs[i], opts.surface.unfoldSurfaces); });
+               [&](size_t i) { finishObject(objs[i], opts.surface.unfoldSurfaces && !look); });
   for (ObjectState& st : objs) res.objects.push_back(std::move(st.out));
   double featureSeconds = features.seconds();
   for (const auto& [image, cache] : profileCaches) featureSeconds += cache->seconds();
   res.secondsPerStage["evolution"] = since(te) - featureSeconds;
-  std::vector<std::vector<size_t>> inside;              // each object's voxels, once its output surface is final
-  bool crossingsCounted = opts.surface.unfoldSurfaces;  // finishObject()'s unfolding counted them
-  if (opts.collision.enabled && !scene.collisions.empty())
+  std::vector<std::vector<size_t>> inside;  // each object's voxels, once its output surface is final
+  bool crossingsCounted = opts.surface.unfoldSurfaces || look;  // finishObject()'s unfolding counted them
+  if (opts.collision.enabled && !scene.collisions.empty() && !look)
     inside = separateOutputs(res, objs, scene, contacts, opts, image.grid, crossingsCounted);
   if (res.collisionSetsBuilt > 0) res.secondsPerStage["collision-detection"] = detectSeconds;
   // What is written out: does any surface cross itself? (Counted already by an unfolding that left the surfaces as
@@ -247,7 +250,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
                  [&](size_t i) { res.objects[i].selfIntersections = selfIntersections(res.objects[i].mesh); });
     res.secondsPerStage["surface-check"] = since(tq);
   }
-  rasteriseLabels(res, scene, inside, image.grid);
+  if (!look) rasteriseLabels(res, scene, inside, image.grid);
   // The quality check of every written surface, in the image at the finest level's scale (quality_check.h).
   const auto tc = Clock::now();
   const ImageFeatures& finest = features.at(res.settings.sigmaMm.back());

@@ -396,8 +396,8 @@ TEST(Segmenter, RefinementPassFinishesTheRefiningObjectAndLeavesTheOthers) {
 
 // Coarse levels only (EvolutionOptions::coarseOnly): the coarse level evolves, the finest is entered (its surface
 // carries the coarse level's displacement, at the finest resolution) and not evolved, and nothing is refined. From 3 mm
-// outside a ball the surface ends near it at the template's own resolution, at a fraction of the steps; with one level
-// the option changes nothing.
+// outside a ball the surface ends near it at the template's own resolution, at a fraction of the steps, and no labels
+// are rasterised; with one level the option changes nothing.
 TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
   const double r = 20.0;
   const msk::Grid g = cubeGrid(1.0, 32);
@@ -418,6 +418,10 @@ TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
   const double coarseErr = meanRadialError(coarse.objects[0].mesh, c, r);
   EXPECT_LT(coarseErr, 1.0);  // from 3 mm
   EXPECT_GT(coarseErr, meanRadialError(full.objects[0].mesh, c, r));
+  // A look, not an output: no labels; the quality figures measured.
+  EXPECT_TRUE(coarse.labels.data.empty());
+  EXPECT_FALSE(full.labels.data.empty());
+  EXPECT_GT(coarse.objects[0].quality.edgeShare, 0.0);
   opts.evolution.quality = msk::Quality::Fast;  // one level
   const msk::SegmentationResult oneLevel = msk::segmentScene(img, scene, opts);
   opts.evolution.coarseOnly = false;

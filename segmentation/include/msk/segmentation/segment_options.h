@@ -46,7 +46,8 @@ struct EvolutionOptions {
   double jacobiOmega = 1.5;    ///< Jacobi relaxation ω ∈ (0, 2)
   /// Evolve only the levels coarser than the finest: the finest level's surface takes the coarser one's displacement
   /// (as on entering it) and is not evolved, nor refined; the clean-up sweeps still run. A quick look at where a start
-  /// leads (the atlas's starts are compared on it). No effect with one level.
+  /// leads (the atlas's starts are compared on it), not an output: the surfaces are neither unfolded nor separated, no
+  /// labels are rasterised; the quality figures are measured. No effect with one level.
   bool coarseOnly = false;
 };
 
