@@ -239,10 +239,9 @@ TEST(AtlasRoute, EachObjectStartsFromTheSubjectThatMatchesItBest) {
 // back, and the muscles on it start from its placement. The atlas has one subject, so the muscles also start turned
 // together by ±10° and ±20° about the femur, each start's coarse level is run, and the start whose surfaces matched
 // the learned appearance best runs whole. Measured (balanced, from the CLI): 0.952 / 0.950 / 0.905 / 0.972, the
-// unturned start kept; with every muscle
-// started from the global placement (at a1fb73b): 0.953 / 0.815 / 0.684 / 0.838. (Each muscle from its own best
-// start, with a final run, reached 0.928 for the hamstrings but started them a quarter inside the adductors, and
-// its adductors ended with 15 crossing face pairs: docs/measurements.md.)
+// unturned start kept; with every muscle started from the global placement alone: 0.953 / 0.815 / 0.684 / 0.838.
+// (Each muscle from its own best start reached 0.928 for the hamstrings but started them a quarter inside the
+// adductors, and its adductors ended with 15 crossing face pairs: docs/measurements.md.)
 TEST(AtlasRoute, MusclesStartFromTheirBonesPlacement) {
   const msk::PhantomPose pose = poseA();
   msk::test::ScratchDir dir;
