@@ -915,7 +915,8 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   AtlasSegmentation out;
   std::vector<std::vector<char>> remeshed(subjects);  // per subject, the templates remeshed here
   int cacheHits = 0, cacheMisses = 0;                 // of that remeshing
-  size_t kept = 0;  // without a final run, the start whose run is the result; with one, the reference's (start 0)
+  FeatureStore features;  // the image's and the profile images' features, computed by the first run that needs them
+  size_t kept = 0;        // without a final run, the start whose run is the result; with one, the reference's (start 0)
   for (size_t k = 0; k < subjects; ++k) {
     const auto t0 = Clock::now();
     // The templates a run would remesh, remeshed here once in the atlas's space: every start places the same
@@ -955,7 +956,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
       if (!global && twists[t] != 0) turnedAboutBone(view, p, twists[t]);
       Scene scene = placedScene(view, p);
       if (beforeRun) beforeRun(scene);
-      SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart);
+      SegmentationResult r = segmentScene(image, scene, startOpts, segmentPart, &features);
       judgePlacement(p, r);
       AtlasStartRun run;
       run.subject = k;
@@ -1006,7 +1007,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
                                                        out.scene.objects[static_cast<size_t>(cp.b)].templ);
   }
-  out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "));
+  out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "), &features);
   judgePlacement(out.placement, out.result);
   markRemeshed();
   if (progress) progress(1.0, "done");

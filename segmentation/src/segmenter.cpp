@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 
@@ -179,8 +180,15 @@ std::string coverageProblem(const Grid& grid, const Scene& scene) {
          "there, or segment with --atlas)";
 }
 
+struct FeatureStore::Impl {
+  std::map<const ImageF*, std::unique_ptr<detail::FeatureCache>> caches;
+};
+
+FeatureStore::FeatureStore() : impl_(std::make_unique<Impl>()) {}
+FeatureStore::~FeatureStore() = default;
+
 SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
-                                const ProgressFn& progress) {
+                                const ProgressFn& progress, FeatureStore* store) {
   const auto t0 = Clock::now();
   checkSegmentOptions(opts);
   checkInput(image, scene);
@@ -193,28 +201,41 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
       res.collisionResponses.push_back({scene.objects[static_cast<size_t>(scene.collisions[k].a)].name,
                                         scene.objects[static_cast<size_t>(scene.collisions[k].b)].name,
                                         contacts[k].response});
-  FeatureCache features(image);
+  // The features of every image the run reads (this image; the images objects learn profiles on), per image, kept in
+  // the caller's store if it gave one.
+  FeatureStore own;
+  std::map<const ImageF*, std::unique_ptr<FeatureCache>>& caches = (store ? *store : own).impl().caches;
+  const auto cacheOf = [&caches](const ImageF& im) -> FeatureCache& {
+    std::unique_ptr<FeatureCache>& cache = caches[&im];
+    if (!cache) cache = std::make_unique<FeatureCache>(im);
+    return *cache;
+  };
+  const auto featureSecondsSoFar = [&caches] {
+    double s = 0;
+    for (const auto& kv : caches) s += kv.second->seconds();
+    return s;
+  };
+  const double featureSecondsBefore = featureSecondsSoFar();
+  FeatureCache& features = cacheOf(image);
   const auto te = Clock::now();  // the evolution's time, less that of the image features (counted apart)
-  features.prepare(res.settings.sigmaMm, opts.evolution.threads);        // every level's scale, in parallel
-  std::map<const ImageF*, std::unique_ptr<FeatureCache>> profileCaches;  // per image objects learn profiles on
+  features.prepare(res.settings.sigmaMm, opts.evolution.threads);  // every level's scale, in parallel
+  std::set<FeatureCache*> profileCaches;                           // of the images objects learn profiles on
   std::vector<ObjectState> objs(scene.objects.size());
   const auto tp = Clock::now();
   for (size_t i = 0; i < objs.size(); ++i) {
     objs[i].obj = &scene.objects[i];
-    if (const ImageF* own = scene.objects[i].profileImage.get()) {
-      std::unique_ptr<FeatureCache>& cache = profileCaches[own];
-      if (!cache) cache = std::make_unique<FeatureCache>(*own);
-      objs[i].profileFeatures = cache.get();
+    if (const ImageF* profiles = scene.objects[i].profileImage.get()) {
+      objs[i].profileFeatures = &cacheOf(*profiles);
+      profileCaches.insert(objs[i].profileFeatures);
     }
     for (const SceneObject::Subject& s : scene.objects[i].profileSubjects) {
-      std::unique_ptr<FeatureCache>& cache = profileCaches[s.image.get()];
-      if (!cache) cache = std::make_unique<FeatureCache>(*s.image);
-      objs[i].subjectFeatures.push_back(cache.get());
+      objs[i].subjectFeatures.push_back(&cacheOf(*s.image));
+      profileCaches.insert(objs[i].subjectFeatures.back());
     }
   }
   // The objects' templates (remeshing, levels, tets, polarity) are prepared on the threads: each reads the prepared
   // scales and writes only its own state.
-  for (auto& kv : profileCaches) kv.second->prepare({res.settings.sigmaMm[0]}, opts.evolution.threads);
+  for (FeatureCache* cache : profileCaches) cache->prepare({res.settings.sigmaMm[0]}, opts.evolution.threads);
   std::unique_ptr<MeshCache> templateCache;
   if (!opts.surface.templateCache.empty()) templateCache = std::make_unique<MeshCache>(opts.surface.templateCache);
   parallelEach(objs.size(), opts.evolution.threads,
@@ -234,8 +255,7 @@ SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const S
   parallelEach(objs.size(), opts.evolution.threads,
                [&](size_t i) { finishObject(objs[i], opts.surface.unfoldSurfaces && !look); });
   for (ObjectState& st : objs) res.objects.push_back(std::move(st.out));
-  double featureSeconds = features.seconds();
-  for (const auto& [image, cache] : profileCaches) featureSeconds += cache->seconds();
+  const double featureSeconds = featureSecondsSoFar() - featureSecondsBefore;
   res.secondsPerStage["evolution"] = since(te) - featureSeconds;
   std::vector<std::vector<size_t>> inside;  // each object's voxels, once its output surface is final
   bool crossingsCounted = opts.surface.unfoldSurfaces || look;  // finishObject()'s unfolding counted them

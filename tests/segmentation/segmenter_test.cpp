@@ -428,3 +428,23 @@ TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
   const msk::SegmentationResult oneLevelFull = msk::segmentScene(img, scene, opts);
   EXPECT_EQ((oneLevel.objects[0].mesh.vertices - oneLevelFull.objects[0].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
 }
+
+// A feature store kept between runs on one image: the second run computes no image features (it reads the first's)
+// and gives the same surfaces as a run without the store.
+TEST(Segmenter, AFeatureStoreServesTheNextRunOnTheSameImage) {
+  const double r = 20.0;
+  const msk::Grid g = cubeGrid(1.0, 32);
+  const Eigen::Vector3d c(0.7, -0.4, 0.3);
+  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const msk::Scene near = oneObjectScene(msk::makeIcosphere(r + 2.0, 3, c));
+  const msk::Scene far = oneObjectScene(msk::makeIcosphere(r - 3.0, 3, c));
+  const msk::SegmentOptions opts;
+  msk::FeatureStore store;
+  const msk::SegmentationResult first = msk::segmentScene(img, near, opts, {}, &store);
+  const msk::SegmentationResult second = msk::segmentScene(img, far, opts, {}, &store);
+  const msk::SegmentationResult alone = msk::segmentScene(img, far, opts);
+  EXPECT_GT(first.secondsPerStage.at("features"), 0.0);
+  EXPECT_EQ(second.secondsPerStage.at("features"), 0.0);
+  EXPECT_GT(alone.secondsPerStage.at("features"), 0.0);
+  EXPECT_EQ((second.objects[0].mesh.vertices - alone.objects[0].mesh.vertices).cwiseAbs().maxCoeff(), 0.0);
+}

@@ -3,6 +3,7 @@
 /// memory and a global shape prior, coarse to fine, every object in one stacked particle system with contacts between
 /// the scene's collision pairs (DESIGN-NOTES §6, §7); then the output surfaces are separated, unfolded and rasterised.
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -139,10 +140,27 @@ std::string coverageProblem(const Grid& grid, const Scene& scene);
 bool remeshesTemplate(const SceneObject& obj, const SegmentOptions& opts);
 TriangleMesh remeshedTemplate(const SceneObject& obj);
 
+/// The image features a run computes (each image normalised and smoothed at each level's scale), kept from one run to
+/// the next: runs of one scene placed several ways in one image (an atlas's starts) compute them once. Keyed by the
+/// images' addresses: the images must not change and must outlive the store. Runs must not share it at once.
+class FeatureStore {
+ public:
+  FeatureStore();
+  ~FeatureStore();
+  FeatureStore(const FeatureStore&) = delete;
+  FeatureStore& operator=(const FeatureStore&) = delete;
+  struct Impl;
+  Impl& impl() { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
 /// Segments every object of the scene in `image` (RAS mm). Throws ParameterError for options out of range
 /// (checkSegmentOptions()) and Error on bad input (imageProblem(), coverageProblem(), an empty scene) before doing
-/// any work.
+/// any work. With `features`, the image features come from that store where an earlier run computed them, and the
+/// ones this run computes are kept there (the same results either way).
 SegmentationResult segmentScene(const ImageF& image, const Scene& scene, const SegmentOptions& opts,
-                                const ProgressFn& progress = {});
+                                const ProgressFn& progress = {}, FeatureStore* features = nullptr);
 
 }  // namespace msk
