@@ -901,7 +901,12 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
   const size_t runs = finalRun ? startCount + 1 : startCount;
   // A final run's choice needs only each start's evolved surfaces (their profile match is taken before the output
   // separation): its starts skip the separation, and the final run, whose surfaces are the ones written, does it.
-  SegmentOptions startOpts = opts;
+  // The runs derive their meshes without the template cache: what they derive (the placed templates' coarser levels)
+  // depends on this case's placement and would only fill the cache with entries no other case reads; the atlas's
+  // templates were remeshed through it, once.
+  SegmentOptions runOpts = opts;
+  runOpts.surface.templateCache.clear();
+  SegmentOptions startOpts = runOpts;
   if (finalRun) startOpts.collision.separationSweeps = 0;
   startOpts.evolution.coarseOnly = screening;
   auto share = [&](size_t run, const std::string& what) -> ProgressFn {
@@ -1007,7 +1012,7 @@ AtlasSegmentation segmentWithAtlas(const Atlas& atlas, const ImageF& image, cons
     out.placement.pairs[c].overlapPlaced = pairOverlap(out.scene.objects[static_cast<size_t>(cp.a)].templ,
                                                        out.scene.objects[static_cast<size_t>(cp.b)].templ);
   }
-  out.result = segmentScene(image, out.scene, opts, share(startCount, "from the best starts: "), &features);
+  out.result = segmentScene(image, out.scene, runOpts, share(startCount, "from the best starts: "), &features);
   judgePlacement(out.placement, out.result);
   markRemeshed();
   if (progress) progress(1.0, "done");

@@ -114,14 +114,14 @@ TEST(AtlasCli, BrokenAtlasFoldersAreOneLineNamingTheFileAndNothingIsWritten) {
 
 // The atlas's muscle templates are remeshed once per case, before the placement, through the template cache: a
 // second case with the same cache reads them instead (three hits, no miss) and writes the same bytes; the report says
-// each muscle's template was remeshed, the femur's not.
+// each muscle's template was remeshed, the femur's not. The placed templates' coarser levels, which no other case
+// would read, are not stored: the cache holds the three remeshed templates only.
 TEST(AtlasCli, TemplatesAreRemeshedOnceThroughTheTemplateCache) {
   ScratchDir dir;
   const std::string atlas = buildSampleAtlas(dir), cache = dir.file("cache");
   auto segment = [&](const std::string& out) {
-    const CliResult r =
-        runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", atlas, "--out", out, "--quality", "fast",
-                "--starts", "reference", "--no-qc", "--template-cache", cache, "--quiet"});
+    const CliResult r = runCli({"segment", "--image", kSample + "image.nii.gz", "--atlas", atlas, "--out", out,
+                                "--starts", "reference", "--no-qc", "--template-cache", cache, "--quiet"});
     EXPECT_EQ(r.exitCode, 0) << r.err;
     return msk::readJsonFile(out + "/report.json");
   };
@@ -133,6 +133,9 @@ TEST(AtlasCli, TemplatesAreRemeshedOnceThroughTheTemplateCache) {
   for (const msk::Json& o : second["objects"]) EXPECT_EQ(o["template_remeshed"], o["name"] != "femur") << o["name"];
   EXPECT_EQ(msk::sha256File(dir.file("first") + "/labels.nii.gz"),
             msk::sha256File(dir.file("second") + "/labels.nii.gz"));
+  size_t entries = 0;
+  for (const auto& e : fs::recursive_directory_iterator(cache)) entries += e.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(entries, 3u);
 }
 
 // Two subjects: the bundled sample and phantom seed 3 posed. Every object gets a fitted template on the second subject
