@@ -818,8 +818,7 @@ std::vector<char> remeshTemplatesOnce(Scene& scene, const SegmentOptions& opts, 
   detail::parallelEach(scene.objects.size(), detail::threadCount(opts.evolution.threads), [&](size_t i) {
     if (!remeshed[i]) return;
     SceneObject& o = scene.objects[i];
-    const std::string op = "remeshIsotropic " + std::to_string(o.templ.vertexCount());
-    TriangleMesh m = cache ? cache->get(op, o.templ, [&] { return remeshedTemplate(o); }) : remeshedTemplate(o);
+    TriangleMesh m = remeshedTemplate(o, cache.get());
     // The subjects' surfaces of an atlas of several share the template's vertices: each is carried onto the new
     // triangulation (every new vertex at its point of the old template, with the same small offset from it).
     if (!o.profileSubjects.empty()) {

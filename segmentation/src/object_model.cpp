@@ -100,7 +100,11 @@ bool remeshesTemplate(const SceneObject& obj, const SegmentOptions& opts) {
          !obj.model.volumetric;
 }
 
-TriangleMesh remeshedTemplate(const SceneObject& obj) { return remeshIsotropic(obj.templ, obj.templ.vertexCount()); }
+TriangleMesh remeshedTemplate(const SceneObject& obj, MeshCache* cache) {
+  const int count = obj.templ.vertexCount();
+  const auto derive = [&] { return remeshIsotropic(obj.templ, count); };
+  return cache ? cache->get("remeshIsotropic " + std::to_string(count), obj.templ, derive) : derive();
+}
 
 }  // namespace msk
 
@@ -125,9 +129,7 @@ void prepareObject(ObjectState& st, const SegmentOptions& opts, const ResolvedSe
   // vertices). A volumetric object's surface is its tetrahedralisation's boundary, which the mesher makes of
   // well-shaped facets anyway.
   st.out.remeshed = remeshesTemplate(obj, opts);
-  const TriangleMesh templ = st.out.remeshed ? derived("remeshIsotropic " + std::to_string(obj.templ.vertexCount()),
-                                                       obj.templ, [&] { return remeshedTemplate(obj); })
-                                             : obj.templ;
+  const TriangleMesh templ = st.out.remeshed ? remeshedTemplate(obj, templateCache) : obj.templ;
   // Resolution levels of the template: index 0 finest; each coarser level has about a quarter of the vertices.
   st.lv.resize(static_cast<size_t>(rs.levels));
   st.lv[0].triangles = templ;

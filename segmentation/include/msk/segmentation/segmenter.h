@@ -13,6 +13,7 @@
 #include "msk/core/volume_simplex.h"
 #include "msk/imaging/volume.h"
 #include "msk/segmentation/image_forces.h"
+#include "msk/segmentation/mesh_cache.h"
 #include "msk/segmentation/quality_check.h"
 #include "msk/segmentation/scene.h"
 #include "msk/segmentation/segment_options.h"
@@ -136,9 +137,9 @@ std::string coverageProblem(const Grid& grid, const Scene& scene);
 
 /// Whether a run remeshes `obj`'s template before evolving it (SurfaceOptions::remeshTemplates, the object's
 /// "remesh"; a template already isotropic is used as it is), and the remeshing it gets: isotropic, to the template's
-/// own vertex count.
+/// own vertex count (read from, or stored in, `cache` where given).
 bool remeshesTemplate(const SceneObject& obj, const SegmentOptions& opts);
-TriangleMesh remeshedTemplate(const SceneObject& obj);
+TriangleMesh remeshedTemplate(const SceneObject& obj, MeshCache* cache = nullptr);
 
 /// The image features a run computes (each image normalised and smoothed at each level's scale), kept from one run to
 /// the next: runs of one scene placed several ways in one image (an atlas's starts) compute them once. Keyed by the
