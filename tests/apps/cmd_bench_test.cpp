@@ -134,13 +134,15 @@ TEST(TradeoffCli, SmallRunWritesTheCsvAndAPlot) {
   EXPECT_GE(pic.height, 400);
 }
 
-// `bench scaling`: the same thigh at two resolutions (templates subdivided 0 and 1 times, x4 vertices): one CSV row
-// each with the vertices growing about fourfold, every stage's time per vertex-step positive, the same anatomy found
-// at both (Dice within 0.03), and a PNG that decodes.
+// `bench scaling`: the same thigh at two resolutions (templates subdivided 0 and 1 times, x4 vertices), each run
+// twice: one CSV row each with the vertices growing about fourfold, every stage's time per vertex-step positive, the
+// fastest of the two runs kept (the slowest beside it, no faster), the same anatomy found at both (Dice within 0.03),
+// and a PNG that decodes.
 TEST(ScalingCli, TwoResolutionsWriteTheCsvAndAPlot) {
   ScratchDir dir;
   const std::string out = dir.file("scaling");
-  const CliResult r = runCli({"bench", "scaling", "--subdivisions", "1", "--vertices", "400", "--out", out, "--quiet"});
+  const CliResult r = runCli(
+      {"bench", "scaling", "--subdivisions", "1", "--vertices", "400", "--repeat", "2", "--out", out, "--quiet"});
   ASSERT_EQ(r.exitCode, 0) << r.err;
   EXPECT_NE(r.out.find("evolution per vertex-step at"), std::string::npos) << r.out;
   std::ifstream csv(out + "/scaling.csv");
@@ -154,7 +156,9 @@ TEST(ScalingCli, TwoResolutionsWriteTheCsvAndAPlot) {
     rows.push_back(f);
   }
   ASSERT_EQ(rows.size(), 3u);
-  ASSERT_EQ(rows[0].size(), 17u);
+  ASSERT_EQ(rows[0].size(), 19u);
+  EXPECT_EQ(rows[0][17], "runs");
+  EXPECT_NE(r.out.find("the fastest of 2 runs at each size"), std::string::npos) << r.out;
   EXPECT_EQ(rows[0][1], "simplex_vertices");
   EXPECT_EQ(rows[0][6], "evolution_us_per_vertex_step");
   const double v0 = std::stod(rows[1][1]), v1 = std::stod(rows[2][1]);
@@ -163,9 +167,12 @@ TEST(ScalingCli, TwoResolutionsWriteTheCsvAndAPlot) {
   for (size_t k = 1; k < 3; ++k) {
     for (size_t c = 3; c <= 14; ++c) EXPECT_GT(std::stod(rows[k][c]), 0.0) << rows[0][c] << " row " << k;
     EXPECT_GT(std::stod(rows[k][16]), 0.8) << "Dice row " << k;
+    EXPECT_EQ(rows[k][17], "2") << "row " << k;
+    EXPECT_GE(std::stod(rows[k][18]), std::stod(rows[k][3])) << "the slowest run against the kept one, row " << k;
   }
   EXPECT_NEAR(std::stod(rows[1][16]), std::stod(rows[2][16]), 0.03);
   const msk::RgbPicture pic = msk::readRgbPicture(out + "/scaling.png");
   EXPECT_GE(pic.width, 600);
   expectOneLineError(runCli({"bench", "scaling", "--subdivisions", "9"}), 2, "", "--subdivisions");
+  expectOneLineError(runCli({"bench", "scaling", "--repeat", "0"}), 2, "", "--repeat");
 }

@@ -18,6 +18,7 @@ struct ScalingBenchOptions {
   int subdivisions = 3;    ///< the largest number of subdivisions (runs 0..subdivisions), 0..5
   PhantomOptions phantom;  ///< seed, spacing and the template vertices of the unsubdivided run
   SegmentOptions segment;  ///< the run's settings (quality, threads)
+  int repeat = 1;          ///< runs at each resolution, 1..20: the fastest one's figures are kept
 };
 
 /// One resolution's figures.
@@ -29,15 +30,19 @@ struct ScalingPoint {
   /// Wall seconds per stage: "segmentation", "evolution", "collision-detection", "image-search" (the objects' own
   /// search times summed, CPU), "constraint-projection", "separation", "features".
   std::map<std::string, double> seconds;
-  double peakRssMiB = 0;  ///< of the process after the run (the runs grow, so it is this run's)
-  double meanDice = 0;    ///< against the phantom's labels
+  double peakRssMiB = 0;             ///< of the process after the run (the runs grow, so it is this run's)
+  double meanDice = 0;               ///< against the phantom's labels
+  int runs = 1;                      ///< runs at this resolution; the figures above are the fastest one's
+  double slowestSegmentSeconds = 0;  ///< the slowest run's segmentation seconds (= segmentSeconds for one run)
 };
 
 /// Midpoint subdivision: every triangle into four, the new vertices at the edges' midpoints (shared by both faces of
 /// an edge); the surface, its orientation and its volume are unchanged. Point data is not kept.
 TriangleMesh subdivideMidpoints(const TriangleMesh& mesh);
 
-/// Generates the phantom once, then segments it at each resolution (progress on `progress`).
+/// Generates the phantom once, then segments it at each resolution, opts.repeat times each, keeping the fastest run's
+/// figures (a machine shared with other work slows some runs; the fastest is the closest to the code's own cost);
+/// progress on `progress`.
 std::vector<ScalingPoint> runScalingBench(const ScalingBenchOptions& opts, const ProgressFn& progress = {});
 
 /// The figures as a table on stdout: seconds per stage, µs per vertex-step, memory per vertex, and how the evolution's
