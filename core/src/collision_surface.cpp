@@ -101,7 +101,15 @@ void CollisionSurface::update(const Points& p) {
 SurfacePoint CollisionSurface::closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint,
                                        double* clearance) const {
   if (clearance) *clearance = 0;
-  if (grid_.empty() || (q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) return {};
+  if (grid_.empty()) return {};
+  if ((q.array() < grid_.layout().lo.array()).any() || (q.array() > boxHi_.array()).any()) {
+    // Outside the triangles' bounding box grown by the reach: no triangle is nearer than that box.
+    if (clearance) {
+      const Eigen::Vector3d lo = grid_.layout().lo.array() + reach_, hi = boxHi_.array() - reach_;
+      *clearance = (lo - q).cwiseMax(q - hi).cwiseMax(0.0).norm();
+    }
+    return {};
+  }
   return grid_.closestWithin(p, tri_, q, std::min(maxDistance, reach_), hint, clearance);
 }
 

@@ -388,3 +388,38 @@ TEST(CollisionSurface, WiderCellsFindTheSameClosestPoints) {
   EXPECT_GT(found, 400);
   EXPECT_LT(found, 1600);
 }
+
+// A point outside the partner's bounding box grown by the reach finds nothing, and its clearance is its distance to
+// that box: above zero, and no farther than the nearest triangle (so that the sets skip its next queries while it
+// and the partner have moved less than that, less the reach).
+TEST(CollisionSurface, PointsOutsideTheBoxGetTheBoxDistanceAsClearance) {
+  const msk::TriangleMesh sphere = msk::makeIcosphere(10, 3, {2, 1, -3});
+  msk::CollisionSurface s(sphere.faces, 1.5, 2.5);
+  s.update(sphere.vertices);
+  std::mt19937 rng(5);
+  int outside = 0;
+  for (int i = 0; i < 500; ++i) {
+    const Eigen::Vector3d q = Eigen::Vector3d(2, 1, -3) + (12.0 + 20.0 * i / 500.0) * uniformVector(rng).normalized();
+    double clearance = -1;
+    const msk::SurfacePoint p = s.closest(sphere.vertices, q, 1.5, -1, &clearance);
+    EXPECT_LT(p.triangle, 0) << "query " << i;
+    const Eigen::Vector3d lo = sphere.vertices.colwise().minCoeff(), hi = sphere.vertices.colwise().maxCoeff();
+    const double box = (lo - q).cwiseMax(q - hi).cwiseMax(0.0).norm();
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int t = 0; t < sphere.faceCount(); ++t)
+      nearest = std::min(nearest, (msk::closestPointOnTriangle(q, sphere.vertices.row(sphere.faces(t, 0)),
+                                                               sphere.vertices.row(sphere.faces(t, 1)),
+                                                               sphere.vertices.row(sphere.faces(t, 2))) -
+                                   q)
+                                      .norm());
+    EXPECT_LE(clearance, nearest) << "query " << i;
+    if (((lo.array() - 1.5 - q.array()).maxCoeff() > 1e-9) || ((q.array() - hi.array() - 1.5).maxCoeff() > 1e-9)) {
+      EXPECT_NEAR(clearance, box, 1e-9) << "query " << i;
+      EXPECT_GT(clearance, 1.5) << "query " << i;
+      ++outside;
+    } else {  // within the grown box: the grid's clearance
+      EXPECT_GE(clearance, 1.5) << "query " << i;
+    }
+  }
+  EXPECT_GT(outside, 200);
+}

@@ -26,7 +26,8 @@ class CollisionSurface {
   void update(const Points& p);
   /// The closest point of the surface to `q` within min(`maxDistance`, reach()) at the positions of the last update();
   /// `hint` a triangle likely to be it (TriangleGrid::closestWithin(), the same answer with or without); `clearance`
-  /// (optional): when nothing is found by a scan of the grid, a distance no triangle is nearer than, else 0.
+  /// (optional): when nothing is found, a distance no triangle is nearer than (from the scan of the grid, or for a
+  /// point outside the triangles' bounding box grown by the reach, the distance to that box), else 0.
   SurfacePoint closest(const Points& p, const Eigen::Vector3d& q, double maxDistance, int hint = -1,
                        double* clearance = nullptr) const;
   /// The closest point to `q` on the triangles around `around` (those sharing a corner with it), walked on: while the
