@@ -25,6 +25,14 @@ msk::Grid cubeGrid(double spacing, double halfWidthMm, const Eigen::Vector3d& ro
   return g;
 }
 
+/// The ball most tests segment: radius 20 mm about a point off the grid's centre, 800 inside and 200 outside, on a cube
+/// grid of 1 mm voxels 64 mm wide turned by `rotDeg`.
+const double kBallRadius = 20.0;
+const Eigen::Vector3d kBallCentre(0.7, -0.4, 0.3);
+msk::ImageF offCentreBall(const Eigen::Vector3d& rotDeg = Eigen::Vector3d::Zero()) {
+  return msk::test::ballImage(cubeGrid(1.0, 32, rotDeg), kBallCentre, kBallRadius, 200.f, 800.f);
+}
+
 msk::Scene oneObjectScene(const msk::TriangleMesh& templ, msk::ObjectKind kind = msk::ObjectKind::Generic) {
   msk::Scene s;
   msk::SceneObject o;
@@ -51,10 +59,9 @@ double meanRadialError(const msk::TriangleMesh& m, const Eigen::Vector3d& c, dou
 
 // A simplex sphere started 3 mm inside or outside a ball converges to its radius within 0.25 voxel.
 TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
-  const double spacing = 1.0, r = 20.0;
-  const msk::Grid g = cubeGrid(spacing, 32, {10, -5, 20});
-  const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const double spacing = 1.0, r = kBallRadius;
+  const Eigen::Vector3d& c = kBallCentre;
+  const msk::ImageF img = offCentreBall({10, -5, 20});
   for (double start : {r - 3.0, r + 3.0}) {
     msk::SegmentOptions opts;
     const msk::SegmentationResult res = msk::segmentScene(img, oneObjectScene(msk::makeIcosphere(start, 3, c)), opts);
@@ -70,10 +77,9 @@ TEST(Segmenter, SphereConvergesToTheBallFromThreeMillimetres) {
 // where it starts, whose targets are then its own vertices: the object falls back to the gradient force with a warning
 // naming it, and reaches the ball from 3 mm as the gradient force does. With a source it keeps the profile force.
 TEST(Segmenter, ProfileForceWithoutAProfileSourceFallsBackToTheGradientWithAWarning) {
-  const double r = 20.0;
-  const msk::Grid g = cubeGrid(1.0, 32);
-  const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const double r = kBallRadius;
+  const Eigen::Vector3d& c = kBallCentre;
+  const msk::ImageF img = offCentreBall();
   msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
   scene.objects[0].hasForce = true;
   scene.objects[0].force = scene.objects[0].model.imageForce = msk::TargetMode::Profile;
@@ -102,10 +108,9 @@ TEST(Segmenter, ProfileForceWithoutAProfileSourceFallsBackToTheGradientWithAWarn
 // neighbouring target samples), so it cannot say so. A run cut after 3 steps from 3 mm out has not settled; the
 // default run has, on every level.
 TEST(Segmenter, ConvergedMeansTheSurfaceHasSettled) {
-  const double r = 20.0;
-  const msk::Grid g = cubeGrid(1.0, 32, {10, -5, 20});
-  const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const double r = kBallRadius;
+  const Eigen::Vector3d& c = kBallCentre;
+  const msk::ImageF img = offCentreBall({10, -5, 20});
   const msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
   const msk::SegmentationResult full = msk::segmentScene(img, scene, msk::SegmentOptions{});
   for (const msk::LevelReport& l : full.objects[0].levels) {
@@ -399,10 +404,9 @@ TEST(Segmenter, RefinementPassFinishesTheRefiningObjectAndLeavesTheOthers) {
 // outside a ball the surface ends near it at the template's own resolution, at a fraction of the steps, and no labels
 // are rasterised; with one level the option changes nothing.
 TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
-  const double r = 20.0;
-  const msk::Grid g = cubeGrid(1.0, 32);
-  const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const double r = kBallRadius;
+  const Eigen::Vector3d& c = kBallCentre;
+  const msk::ImageF img = offCentreBall();
   msk::Scene scene = oneObjectScene(msk::makeIcosphere(r + 3.0, 3, c));
   scene.objects[0].model.refine = true;
   msk::SegmentOptions opts;
@@ -432,10 +436,9 @@ TEST(Segmenter, CoarseLevelsOnlyEvolveTheCoarseLevelAndCarryItToTheFinest) {
 // A feature store kept between runs on one image: the second run computes no image features (it reads the first's)
 // and gives the same surfaces as a run without the store.
 TEST(Segmenter, AFeatureStoreServesTheNextRunOnTheSameImage) {
-  const double r = 20.0;
-  const msk::Grid g = cubeGrid(1.0, 32);
-  const Eigen::Vector3d c(0.7, -0.4, 0.3);
-  const msk::ImageF img = msk::test::ballImage(g, c, r, 200.f, 800.f);
+  const double r = kBallRadius;
+  const Eigen::Vector3d& c = kBallCentre;
+  const msk::ImageF img = offCentreBall();
   const msk::Scene near = oneObjectScene(msk::makeIcosphere(r + 2.0, 3, c));
   const msk::Scene far = oneObjectScene(msk::makeIcosphere(r - 3.0, 3, c));
   const msk::SegmentOptions opts;
