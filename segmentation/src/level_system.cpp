@@ -14,6 +14,9 @@ namespace {
 /// (docs/measurements.md, "Wider grid cells").
 constexpr double kPartnerCellEdges = 2.5;
 
+/// A clean-up sweep whose corrections move no coordinate by more than this (mm) ends the sweeps.
+constexpr double kNegligibleMoveMm = 1e-9;
+
 /// Detects the contacts of every collision set at positions `p` (between side tests the vertices in contact may follow
 /// their partner triangles: CollisionConstraints::detect()). The sets only read the positions and their shared partner
 /// surfaces (updated before), and each writes its own contacts, so they run on `threads` threads (0 = all cores) with
@@ -125,10 +128,13 @@ void LevelSystem::detectContacts(const Points& p, bool sideTest, int threads) {
   detectAll(collide_, p, sideTest, threads);
 }
 
-void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads) {
+int LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads) {
   threads = threadCount(threads);
-  for (int sweep = 0; sweep < sweeps; ++sweep) {
+  Points before;
+  int sweep = 0;
+  for (; sweep < sweeps; ++sweep) {
     int corrected = 0;
+    if (global_.empty()) before = p;
     for (size_t k = 0; k < collide_.size(); ++k) {
       if (collide_[k]->response().resolution != CollisionResolution::Sequential) continue;
       // Positions change with every projection here: the partner's grid is rebuilt before each detection (update()
@@ -139,8 +145,10 @@ void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweep
       corrected += collide_[k]->projectPositions(p, w);
     }
     if (global_.empty()) {
-      // A sweep that corrected nothing left the positions as they were: every further sweep would repeat it.
-      if (corrected == 0) break;
+      // A sweep that corrected nothing left the positions as they were: every further sweep would repeat it. Nor do
+      // the sweeps after one whose corrections moved no particle by more than kNegligibleMoveMm: what they correct is
+      // the rounding of the last (contacts set exactly at the gap, moved back and forth by 1e-13 mm and less).
+      if (corrected == 0 || !((p - before).cwiseAbs().maxCoeff() > kNegligibleMoveMm)) return sweep + 1;
       continue;
     }
     for (auto& kv : surfaces_) kv.second->update(p);
@@ -148,6 +156,7 @@ void LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweep
       if (c->response().resolution == CollisionResolution::Global) c->detect(p, sweep == 0, threads, true);
     for (auto& kv : global_) kv.second->projectPositions(p, w);
   }
+  return sweep;
 }
 
 }  // namespace msk::detail

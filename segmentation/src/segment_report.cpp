@@ -184,6 +184,7 @@ Json objectJson(const ObjectResult& o) {
     r["last_max_move_mm"] = l.lastMaxMoveMm;
     r["sigma_mm"] = l.sigmaMm;
     r["range_mm"] = l.rangeMm;
+    r["clean_up_sweeps"] = l.cleanUpSweeps;
     if (l.refinement) r["refinement"] = true;
     lv.push_back(r);
     totalSteps += l.steps;

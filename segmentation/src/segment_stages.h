@@ -203,8 +203,10 @@ class LevelSystem {
   void detectContacts(const Points& p, bool sideTest, int threads);
   /// Collision-only sweeps on `p` after the last step (position corrections with each pair's target whatever its mode):
   /// sequential pairs one set after the other (each set's detection on `threads` threads, 0 = all cores, the result
-  /// the same for any number), then the global pairs solved together; it stops early once a sweep corrects nothing.
-  void cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads);
+  /// the same for any number), then the global pairs solved together; it stops early once a sweep corrects nothing
+  /// (sequential pairs alone: or moves no coordinate by more than a picometre).
+  /// Returns the sweeps run.
+  int cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps, const Scene& scene, int threads);
 
  private:
   std::vector<ObjectState>& objs_;

@@ -120,7 +120,8 @@ double evolve(std::vector<ObjectState>& objs, SegmentationResult& res, const Sce
       // robust practice: position first).
       const auto tc = Clock::now();
       Points p = solver.positions();
-      system.cleanUpContacts(p, solver.inverseMass(), opts.collision.finalSweeps, scene, opts.evolution.threads);
+      rep.cleanUpSweeps =
+          system.cleanUpContacts(p, solver.inverseMass(), opts.collision.finalSweeps, scene, opts.evolution.threads);
       solver.reset(p, solver.inverseMass());
       detectSeconds += since(tc);
     }

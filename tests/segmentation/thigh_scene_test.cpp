@@ -46,6 +46,14 @@ TEST(ThighScene, CollisionResponseRemovesTheOverlapWithoutCostingAccuracy) {
   ASSERT_EQ(with.res.pairPenetrationMm.size(), 6u);
   for (double depth : with.res.pairPenetrationMm) EXPECT_LE(depth, 0.1);
   EXPECT_TRUE(without.res.pairPenetrationMm.empty());
+  // The collision-only sweeps after the last step stop once a sweep's corrections are only rounding (moving nothing by
+  // a picometre), well before the cap of 10; earlier levels and the run without collisions have none.
+  for (const msk::ObjectResult& o : with.res.objects) {
+    EXPECT_GE(o.levels.back().cleanUpSweeps, 1) << o.name;
+    EXPECT_LT(o.levels.back().cleanUpSweeps, 10) << o.name;
+    EXPECT_EQ(o.levels.front().cleanUpSweeps, 0) << o.name;
+  }
+  for (const msk::ObjectResult& o : without.res.objects) EXPECT_EQ(o.levels.back().cleanUpSweeps, 0) << o.name;
   for (int i = 0; i < 4; ++i) {
     EXPECT_GE(with.dice[i], 0.95) << "object " << i + 1;
     // The response may cost a muscle a little Dice where it now shares a boundary (at most 0.006).

@@ -53,6 +53,9 @@ struct LevelReport {
   double sigmaMm = 0;       ///< image scale of the level, mm
   double rangeMm = 0;       ///< search range of the level, mm
   bool refinement = false;  ///< the refinement pass (ImageSearchOptions::refinePass) rather than a level
+  /// Collision-only sweeps run after the last step of the run's last pass (0 elsewhere, or without collisions); fewer
+  /// than CollisionOptions::finalSweeps where a sweep left nothing to correct
+  int cleanUpSweeps = 0;
 };
 
 /// The result for one object.
