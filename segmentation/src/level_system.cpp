@@ -146,7 +146,7 @@ int LevelSystem::cleanUpContacts(Points& p, const Eigen::VectorXd& w, int sweeps
     }
     if (global_.empty()) {
       // A sweep that corrected nothing left the positions as they were: every further sweep would repeat it. Nor do
-      // the sweeps after one whose corrections moved no particle by more than kNegligibleMoveMm: what they correct is
+      // the sweeps after one whose corrections moved no coordinate by more than kNegligibleMoveMm: what they correct is
       // the rounding of the last (contacts set exactly at the gap, moved back and forth by 1e-13 mm and less).
       if (corrected == 0 || !((p - before).cwiseAbs().maxCoeff() > kNegligibleMoveMm)) return sweep + 1;
       continue;
