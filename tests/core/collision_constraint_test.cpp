@@ -16,6 +16,19 @@
 
 namespace {
 using msk::test::uniformVector;
+
+/// The distance from `q` to the nearest triangle of `m`, every triangle tried (the reference the grid queries are
+/// checked against).
+double nearestTriangleDistance(const msk::TriangleMesh& m, const Eigen::Vector3d& q) {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (int t = 0; t < m.faceCount(); ++t)
+    nearest = std::min(nearest, (msk::closestPointOnTriangle(q, m.vertices.row(m.faces(t, 0)).transpose(),
+                                                             m.vertices.row(m.faces(t, 1)).transpose(),
+                                                             m.vertices.row(m.faces(t, 2)).transpose()) -
+                                 q)
+                                    .norm());
+  return nearest;
+}
 }  // namespace
 
 // Collision position correction (Table 4.23, spring): reaches the gap, conserves linear momentum.
@@ -137,13 +150,7 @@ TEST(TriangleGrid, ClearanceIsALowerBoundOfEveryTriangleDistance) {
     const Eigen::Vector3d q = Eigen::Vector3d(2, 1, -3) + Eigen::Vector3d(u(rng), u(rng), u(rng));
     double clearance = -1;
     const msk::SurfacePoint s = grid.closestWithin(m.vertices, m.faces, q, radius, -1, &clearance);
-    double nearest = std::numeric_limits<double>::infinity();
-    for (int t = 0; t < m.faceCount(); ++t)
-      nearest = std::min(nearest, (msk::closestPointOnTriangle(q, m.vertices.row(m.faces(t, 0)).transpose(),
-                                                               m.vertices.row(m.faces(t, 1)).transpose(),
-                                                               m.vertices.row(m.faces(t, 2)).transpose()) -
-                                   q)
-                                      .norm());
+    const double nearest = nearestTriangleDistance(m, q);
     if (s.triangle >= 0) {
       EXPECT_NEAR(s.distance, nearest, 1e-12);
       continue;
@@ -374,14 +381,7 @@ TEST(CollisionSurface, WiderCellsFindTheSameClosestPoints) {
         EXPECT_LT((a.point - b.point).norm(), 1e-12) << "query " << i;
         continue;
       }
-      double nearest = std::numeric_limits<double>::infinity();
-      for (int t = 0; t < sphere.faceCount(); ++t)
-        nearest = std::min(nearest, (msk::closestPointOnTriangle(q, sphere.vertices.row(sphere.faces(t, 0)),
-                                                                 sphere.vertices.row(sphere.faces(t, 1)),
-                                                                 sphere.vertices.row(sphere.faces(t, 2))) -
-                                     q)
-                                        .norm());
-      EXPECT_LE(clearance, nearest) << "query " << i;
+      EXPECT_LE(clearance, nearestTriangleDistance(sphere, q)) << "query " << i;
     }
     found += a.triangle >= 0;
   }
@@ -405,14 +405,7 @@ TEST(CollisionSurface, PointsOutsideTheBoxGetTheBoxDistanceAsClearance) {
     EXPECT_LT(p.triangle, 0) << "query " << i;
     const Eigen::Vector3d lo = sphere.vertices.colwise().minCoeff(), hi = sphere.vertices.colwise().maxCoeff();
     const double box = (lo - q).cwiseMax(q - hi).cwiseMax(0.0).norm();
-    double nearest = std::numeric_limits<double>::infinity();
-    for (int t = 0; t < sphere.faceCount(); ++t)
-      nearest = std::min(nearest, (msk::closestPointOnTriangle(q, sphere.vertices.row(sphere.faces(t, 0)),
-                                                               sphere.vertices.row(sphere.faces(t, 1)),
-                                                               sphere.vertices.row(sphere.faces(t, 2))) -
-                                   q)
-                                      .norm());
-    EXPECT_LE(clearance, nearest) << "query " << i;
+    EXPECT_LE(clearance, nearestTriangleDistance(sphere, q)) << "query " << i;
     if (((lo.array() - 1.5 - q.array()).maxCoeff() > 1e-9) || ((q.array() - hi.array() - 1.5).maxCoeff() > 1e-9)) {
       EXPECT_NEAR(clearance, box, 1e-9) << "query " << i;
       EXPECT_GT(clearance, 1.5) << "query " << i;
