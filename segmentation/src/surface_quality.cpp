@@ -2,6 +2,7 @@
 
 #include <CGAL/Polygon_mesh_processing/remesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/box_intersection_d.h>
 
 #include <algorithm>
 #include <cmath>
@@ -31,6 +32,33 @@ void requireClosed(const TriangleMesh& mesh, const char* caller) {
 std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> crossingPairs(const CgalMesh& m) {
   std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> pairs;
   PMP::self_intersections(m, std::back_inserter(pairs));
+  return pairs;
+}
+
+/// The pairs of faces of `m` that cross each other and have a face in `changed` (a flag per face): those faces and
+/// every face whose box meets one of theirs are given to CGAL's search, whose pairs are then every crossing pair of
+/// `m` with a face in `changed` (and pairs of two faces outside it, which cross as well).
+std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> crossingPairsNear(const CgalMesh& m,
+                                                                                     const std::vector<char>& changed) {
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
+  std::vector<Box> all, near;
+  all.reserve(m.number_of_faces());
+  for (CgalMesh::Face_index f : m.faces()) {
+    CGAL::Bbox_3 box;
+    for (CgalMesh::Vertex_index v : CGAL::vertices_around_face(m.halfedge(f), m)) box += m.point(v).bbox();
+    all.emplace_back(box, static_cast<int>(f.idx()));
+    if (changed[f.idx()]) near.push_back(all.back());
+  }
+  std::vector<char> in(changed.size(), 0);
+  CGAL::box_intersection_d(near.begin(), near.end(), all.begin(), all.end(), [&](const Box& a, const Box& b) {
+    in[static_cast<size_t>(a.info())] = 1;
+    in[static_cast<size_t>(b.info())] = 1;
+  });
+  std::vector<CgalMesh::Face_index> range;
+  for (size_t f = 0; f < in.size(); ++f)
+    if (in[f]) range.emplace_back(static_cast<CgalMesh::size_type>(f));
+  std::vector<std::pair<CgalMesh::Face_index, CgalMesh::Face_index>> pairs;
+  PMP::self_intersections(range, m, std::back_inserter(pairs));
   return pairs;
 }
 
@@ -94,8 +122,12 @@ UnfoldReport unfoldSurface(TriangleMesh& mesh, int maxRounds) {
     for (int k = 0; k < 3; ++k) ring[static_cast<size_t>(mesh.faces(f, k))].push_back(mesh.faces(f, (k + 1) % 3));
   const Points start = mesh.vertices;
   std::vector<char> moved(ring.size(), 0);
+  // After the first round only the faces with a smoothed corner can have started or stopped crossing: every face of a
+  // crossing pair had its corners smoothed, so a pair of two faces without one crossed before and does not now.
+  std::vector<char> changed;
   for (int round = 0;; ++round) {
-    const auto pairs = crossingPairs(detail::toCgalMesh(mesh, "unfoldSurface"));
+    const CgalMesh cgal = detail::toCgalMesh(mesh, "unfoldSurface");
+    const auto pairs = round == 0 ? crossingPairs(cgal) : crossingPairsNear(cgal, changed);
     if (round == 0) rep.before = pairs.size();
     rep.after = pairs.size();
     if (pairs.empty() || round == maxRounds) break;
@@ -111,6 +143,9 @@ UnfoldReport unfoldSurface(TriangleMesh& mesh, int maxRounds) {
           for (int u : ring[v]) next[static_cast<size_t>(u)] = 1;
       in.swap(next);
     }
+    changed.assign(static_cast<size_t>(mesh.faceCount()), 0);
+    for (int f = 0; f < mesh.faceCount(); ++f)
+      for (int k = 0; k < 3; ++k) changed[static_cast<size_t>(f)] |= in[static_cast<size_t>(mesh.faces(f, k))];
     for (int it = 0; it < 3; ++it) {
       const Points x = mesh.vertices;
       for (size_t v = 0; v < ring.size(); ++v) {

@@ -112,6 +112,25 @@ TEST(SurfaceQuality, UnfoldingRemovesALocalFoldAndMovesOnlyItsNeighbourhood) {
   EXPECT_EQ((sphere.vertices - msk::makeIcosphere(10, 3).vertices).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// However many rounds it is given, the crossing pairs an unfolding reports as left are those a full count finds on
+// the surface it leaves (rounds after the first search only near the vertices smoothed).
+TEST(SurfaceQuality, UnfoldingCountsWhatIsLeftAfterEachNumberOfRounds) {
+  msk::TriangleMesh m = msk::makeIcosphere(10, 4);
+  for (int v = 0; v < m.vertexCount(); ++v)  // a cap pushed in through the sphere's far side
+    if (m.vertices(v, 2) > 8.0) m.vertices(v, 2) = 8.0 - 10.0 * (m.vertices(v, 2) - 8.0);
+  const size_t before = msk::selfIntersections(m);
+  ASSERT_GT(before, 0u);
+  int roundsNeeded = 0;
+  for (int rounds = 1; rounds <= 8; ++rounds) {
+    msk::TriangleMesh u = m;
+    const msk::UnfoldReport r = msk::unfoldSurface(u, rounds);
+    EXPECT_EQ(r.before, before);
+    EXPECT_EQ(r.after, msk::selfIntersections(u)) << rounds << " rounds";
+    if (r.after == 0 && roundsNeeded == 0) roundsNeeded = r.rounds;
+  }
+  EXPECT_GE(roundsNeeded, 3) << "the fold should take several rounds";
+}
+
 // A remeshed surface counts as isotropic and is not remeshed again by segment; a decimated one (the thin triangles of a
 // stretched sphere, the bundled phantom's decimated femur) does not.
 TEST(SurfaceQuality, IsotropicTriangulationTellsARemeshedSurfaceFromADecimatedOne) {
