@@ -51,15 +51,21 @@ struct ActiveSample {
 };
 
 /// What the queries of one direction of one pair learnt of each of A's samples, for the next ones: the triangle of B
-/// its last query found (−1: none), where its next query starts; and, from a refresh that found nothing within the
-/// reach, a distance no triangle of B was nearer than (0: none known; in floats rounded down) as of `stamp`, the two
-/// surfaces' summed travel (SeparationState::travelled) then. A sample whose distance, less the travel since, is still
-/// beyond the reach cannot find B: the next refresh skips it.
+/// its last query found (−1: none), where its next query starts; and, from a refresh, a distance no triangle of B was
+/// nearer than (0: none known; in floats rounded down) as of `stamp`, the two surfaces' summed travel
+/// (SeparationState::travelled) then, with whether the sample was outside B. A sample whose distance, less the travel
+/// since, is still beyond the reach cannot find B; one that was outside and whose distance less the travel since is
+/// still beyond the gap + 1 mm is outside B, too far to be corrected (passes between refreshes leave it alone): the
+/// next refresh skips both. One still beyond half the gap is still outside: its side needs no winding number.
 struct SampleMemory {
   std::vector<int> triangle;
   std::vector<float> clearance;
+  std::vector<char> outside;
   double stamp = 0;
 };
+
+/// Whether a distance bound `left` (mm) is beyond `limit` with a margin far above rounding.
+bool beyond(double left, double limit) { return left > limit * (1 + 1e-9) + 1e-9; }
 
 /// `x` in a float no larger than it (x ≥ 0).
 float floatBelow(double x) {
@@ -77,6 +83,7 @@ float floatBelow(double x) {
 /// direction): the corrections between refreshes are far smaller than the reach.
 struct PassResult {
   long applied = 0;
+  long skipped = 0;      ///< samples a refresh passed over on their distance bound
   double largestMm = 0;  ///< largest correction |ΔPc|
   bool anyInside = false;
 };
@@ -93,24 +100,35 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     active.clear();
     if (memory.clearance.size() != static_cast<size_t>(n)) {
       memory.clearance.assign(static_cast<size_t>(n), 0.0f);
+      memory.outside.assign(static_cast<size_t>(n), 0);
       memory.triangle.assign(static_cast<size_t>(n), -1);
     }
   }
   const double since = travel - memory.stamp;
+  // The largest sum of this pass's corrections at any vertex of A and of B so far: with `since`, a bound on how far any
+  // point of either surface has moved since the samples' distances were stamped.
+  std::vector<double> movedA, movedB;
+  double mostA = 0, mostB = 0;
   for (int i = 0; i < n; ++i) {
     // Between refreshes a sample last seen outside and more than 1 mm beyond the gap is left alone: corrections
     // move surfaces by far less per sweep.
     if (!refresh && active[static_cast<size_t>(i)].distance > gap + 1.0) continue;
     const int k = refresh ? i : active[static_cast<size_t>(i)].sample;
+    bool knownOutside = false;
     if (refresh) {
-      // Still out of reach since the last refresh: nothing can be found (its bound carried to this pass's stamp).
+      // Still out of reach since the last refresh, or still outside beyond the gap + 1 mm: nothing to find or correct
+      // (its bound carried to this pass's stamp).
       float& clear = memory.clearance[static_cast<size_t>(k)];
-      const double left = static_cast<double>(clear) - since;
-      if (clear > 0 && left > reach * (1 + 1e-9) + 1e-9) {
+      char& wasOutside = memory.outside[static_cast<size_t>(k)];
+      const double left = static_cast<double>(clear) - since - mostA - mostB;
+      if (clear > 0 && (beyond(left, reach) || (wasOutside && beyond(left, gap + 1.0)))) {
         clear = floatBelow(left);
+        ++out.skipped;
         continue;
       }
+      knownOutside = clear > 0 && wasOutside && beyond(left, 0.5 * gap);
       clear = 0;
+      wasOutside = 0;
     }
     int ia[3];
     double wa[3];
@@ -139,7 +157,7 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
       // would move the sample the gap's depth into B.
       const bool carry = !refresh && (s.point - active[static_cast<size_t>(i)].contact).norm() < 0.5;
       inside = carry && (q - s.point).dot(active[static_cast<size_t>(i)].outward) < 0;
-      if (!carry || inside || s.distance < 0.5 * gap) {
+      if (!knownOutside && (!carry || inside || s.distance < 0.5 * gap)) {
         if (!winding) winding.emplace(B.vertices, B.faces);
         inside = winding->inside(q, B.vertices);
       }
@@ -151,6 +169,10 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     }
     if (refresh) {
       active.push_back({k, normal, s.point, inside ? 0.0 : s.distance});
+      if (!inside) {
+        memory.clearance[static_cast<size_t>(k)] = floatBelow(s.distance);
+        memory.outside[static_cast<size_t>(k)] = 1;
+      }
     } else {
       active[static_cast<size_t>(i)].outward = normal;
       active[static_cast<size_t>(i)].contact = s.point;
@@ -168,8 +190,19 @@ PassResult separateOnce(TriangleMesh& A, TriangleMesh& B, double wA, double wB, 
     for (int c = 0; c < 3; ++c) denom += s.bary[c] * s.bary[c] * wB;
     if (!(denom > 0)) continue;
     const double mbar = 1.0 / denom;
-    for (int c = 0; c < na; ++c) A.vertices.row(ia[c]) -= (wA * wa[c] * mbar) * delta.transpose();
-    for (int c = 0; c < 3; ++c) B.vertices.row(B.faces(s.triangle, c)) += (wB * s.bary[c] * mbar) * delta.transpose();
+    if (movedA.empty()) {
+      movedA.assign(static_cast<size_t>(A.vertexCount()), 0.0);
+      movedB.assign(static_cast<size_t>(B.vertexCount()), 0.0);
+    }
+    for (int c = 0; c < na; ++c) {
+      A.vertices.row(ia[c]) -= (wA * wa[c] * mbar) * delta.transpose();
+      mostA = std::max(mostA, movedA[static_cast<size_t>(ia[c])] += wA * wa[c] * mbar * delta.norm());
+    }
+    for (int c = 0; c < 3; ++c) {
+      const int corner = B.faces(s.triangle, c);
+      B.vertices.row(corner) += (wB * s.bary[c] * mbar) * delta.transpose();
+      mostB = std::max(mostB, movedB[static_cast<size_t>(corner)] += wB * s.bary[c] * mbar * delta.norm());
+    }
     ++out.applied;
     out.largestMm = std::max(out.largestMm, delta.norm());
   }
@@ -306,6 +339,7 @@ PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<do
             travelB += (B.vertices - startB).rowwise().norm().maxCoeff();
           }
           st.results[k].applied += r.applied;
+          st.results[k].skipped += r.skipped;
           st.results[k].largestMm = std::max(st.results[k].largestMm, r.largestMm);
           st.results[k].anyInside = st.results[k].anyInside || r.anyInside;
         }
@@ -321,6 +355,7 @@ PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<do
       }
       st.examinedAt[k] = pairVersion(k);
       sweep.applied += r.applied;
+      sweep.skipped += r.skipped;
       sweep.largestMm = std::max(sweep.largestMm, r.largestMm);
       sweep.anyInside = sweep.anyInside || r.anyInside;
     }
@@ -335,8 +370,22 @@ PassResult sweepPairs(std::vector<TriangleMesh*>& surfaces, const std::vector<do
 
 }  // namespace
 
+struct SeparationMemory::Samples {
+  std::vector<SampleMemory> memory;
+};
+
+SeparationMemory::SeparationMemory() = default;
+SeparationMemory::~SeparationMemory() = default;
+
+void SeparationMemory::moved(int surface, double mm) {
+  if (surface < 0 || static_cast<size_t>(surface) >= travelled.size()) return;  // nothing learnt of it yet
+  if (!(mm >= 0) || !std::isfinite(mm)) throw ParameterError("separation move", std::to_string(mm), "must be >= 0 mm");
+  travelled[static_cast<size_t>(surface)] += mm;
+}
+
 SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const std::vector<double>& inverseMass,
-                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts) {
+                                  const std::vector<SeparationPair>& pairs, const SeparationOptions& opts,
+                                  SeparationMemory* memory) {
   checkSeparationInput(surfaces, inverseMass, pairs, opts);
   SeparationReport rep;
   // Samples found near the partner at the last refresh, per pair and direction. A refresh (every sample examined, the
@@ -358,6 +407,14 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   st.active.resize(2 * np);
   st.memory.resize(2 * np);
   st.travelled.assign(surfaces.size(), 0.0);
+  if (memory && memory->samples && memory->samples->memory.size() == 2 * np &&
+      memory->travelled.size() == surfaces.size()) {
+    st.memory = std::move(memory->samples->memory);
+    st.travelled = memory->travelled;
+    // The distance bounds carry over; the triangles found do not: a search guided by the grid of a pass's start finds
+    // what a search without them finds only while nothing has moved, so this run starts where a fresh one starts.
+    for (SampleMemory& m : st.memory) std::fill(m.triangle.begin(), m.triangle.end(), -1);
+  }
   st.version.assign(surfaces.size(), 0);
   st.settledAt.assign(np, -1);
   st.examinedAt.assign(np, -1);
@@ -370,6 +427,7 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
     const PassResult r = sweepPairs(surfaces, inverseMass, pairs, colours, reach, far, refresh, pool, st);
     ++rep.sweeps;
     rep.corrections += r.applied;
+    rep.skipped += r.skipped;
     // Done when a refresh sweep finds nothing inside a partner. Between refreshes, a sweep that found nothing inside
     // and corrected nothing by more than the tolerance calls the refresh early (within-gap adjustments between three
     // or more touching surfaces can go on trading hundredths of a millimetre).
@@ -381,6 +439,11 @@ SeparationReport separateSurfaces(std::vector<TriangleMesh*>& surfaces, const st
   }
   for (TriangleMesh* s : surfaces)
     if (!s->vertices.allFinite()) throw Error("separation: non-finite vertex position");
+  if (memory) {
+    if (!memory->samples) memory->samples = std::make_unique<SeparationMemory::Samples>();
+    memory->samples->memory = std::move(st.memory);
+    memory->travelled = st.travelled;
+  }
   return rep;
 }
 

@@ -32,7 +32,8 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
     pairs.push_back({scene.collisions[k].a, scene.collisions[k].b, contacts[k].gapMm});
     so.reachMm = std::max(so.reachMm, contacts[k].gapMm + contacts[k].proximityMm);
   }
-  const SeparationReport sep = separateSurfaces(surfaces, inverseMass, pairs, so);
+  SeparationMemory memory;  // what each run learnt of the samples, for the runs after an unfolding
+  const SeparationReport sep = separateSurfaces(surfaces, inverseMass, pairs, so, &memory);
   res.separationSweeps = sep.sweeps;
   res.separationCorrections = sep.corrections;
   // The separation moves vertices one by one and can fold a surface squeezed between partners: unfolded, then
@@ -41,6 +42,7 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
   crossingsCounted = false;
   for (int again = 0; again < 2 && opts.surface.unfoldSurfaces; ++again) {
     std::vector<int> movedBy(res.objects.size(), 0);
+    std::vector<double> moveMm(res.objects.size(), 0.0);
     parallelEach(res.objects.size(), opts.evolution.threads, [&](size_t i) {
       ObjectResult& o = res.objects[i];
       const UnfoldReport u = unfoldSurface(o.mesh);
@@ -48,12 +50,14 @@ std::vector<std::vector<size_t>> separateOutputs(SegmentationResult& res, const 
       o.unfoldedVertices += u.verticesMoved;
       o.selfIntersections = u.after;
       movedBy[i] = u.verticesMoved;
+      moveMm[i] = u.maxMoveMm;
     });
+    for (size_t i = 0; i < res.objects.size(); ++i) memory.moved(static_cast<int>(i), moveMm[i]);
     if (std::all_of(movedBy.begin(), movedBy.end(), [](int m) { return m == 0; })) {
       crossingsCounted = true;
       break;
     }
-    const SeparationReport more = separateSurfaces(surfaces, inverseMass, pairs, so);
+    const SeparationReport more = separateSurfaces(surfaces, inverseMass, pairs, so, &memory);
     res.separationSweeps += more.sweeps;
     res.separationCorrections += more.corrections;
   }

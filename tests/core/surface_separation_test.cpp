@@ -108,3 +108,42 @@ TEST(SurfaceSeparation, ParallelPairsGiveTheSameSurfacesForAnyThreadCount) {
   bad.threads = -1;
   EXPECT_THROW(msk::separateSurfaces(ptr, {1.0, 1.0}, {{0, 1, 0.2}}, bad), msk::ParameterError);
 }
+
+// A second run given the first run's memory, with the move made in between declared, ends with the surfaces of a run
+// without it (what the memory skips could not have needed a correction) and skips more samples; an undeclared move
+// that pushes one surface into the other is missed by the skipped samples, which is why moves are declared.
+TEST(SurfaceSeparation, AMemoryOfTheLastRunSkipsSamplesAndChangesNothing) {
+  auto spheres = [] {
+    return std::pair<msk::TriangleMesh, msk::TriangleMesh>{msk::makeIcosphere(10, 4, {0, 0, 0}),
+                                                           msk::makeIcosphere(10, 4, {19.0, 0, 0})};
+  };
+  msk::SeparationOptions opts;
+  opts.maxSweeps = 100;
+  opts.reachMm = 4.0;
+  auto [a, b] = spheres();
+  std::vector<msk::TriangleMesh*> s = {&a, &b};
+  msk::SeparationMemory memory;
+  ASSERT_TRUE(msk::separateSurfaces(s, {1.0, 1.0}, {{0, 1, 0.2}}, opts, &memory).clean);
+  // Then b moves 1.5 mm towards a, into it.
+  b.vertices.col(0).array() -= 1.5;
+  msk::TriangleMesh a2 = a, b2 = b;
+  std::vector<msk::TriangleMesh*> s2 = {&a2, &b2};
+  const msk::SeparationReport fresh = msk::separateSurfaces(s2, {1.0, 1.0}, {{0, 1, 0.2}}, opts);
+  msk::TriangleMesh a3 = a, b3 = b;
+  std::vector<msk::TriangleMesh*> s3 = {&a3, &b3};
+  memory.moved(1, 1.5);
+  const msk::SeparationReport remembered = msk::separateSurfaces(s3, {1.0, 1.0}, {{0, 1, 0.2}}, opts, &memory);
+  EXPECT_TRUE(remembered.clean);
+  EXPECT_GT(remembered.skipped, fresh.skipped);
+  EXPECT_EQ(remembered.corrections, fresh.corrections);
+  EXPECT_EQ((a3.vertices - a2.vertices).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((b3.vertices - b2.vertices).cwiseAbs().maxCoeff(), 0.0);
+  // The same memory without the move declared: samples now inside are skipped as if still outside.
+  auto [a4, b4] = spheres();
+  std::vector<msk::TriangleMesh*> s4 = {&a4, &b4};
+  msk::SeparationMemory undeclared;
+  ASSERT_TRUE(msk::separateSurfaces(s4, {1.0, 1.0}, {{0, 1, 0.2}}, opts, &undeclared).clean);
+  b4.vertices.col(0).array() -= 1.5;
+  msk::separateSurfaces(s4, {1.0, 1.0}, {{0, 1, 0.2}}, opts, &undeclared);
+  EXPECT_NE((b4.vertices - b2.vertices).cwiseAbs().maxCoeff(), 0.0);
+}
