@@ -34,7 +34,15 @@ TEST(TriangleMesh, ClosedMeshProblemsAreNamed) {
   EXPECT_NE(msk::closedMeshProblem(open).find("not closed"), std::string::npos);
   msk::TriangleMesh flipped = m;
   std::swap(flipped.faces(0, 1), flipped.faces(0, 2));
-  EXPECT_NE(msk::closedMeshProblem(flipped), "");
+  EXPECT_NE(msk::closedMeshProblem(flipped).find("used twice"), std::string::npos);
+  // A face listed twice: the repeat named is the first one made, its first edge.
+  msk::TriangleMesh doubled = m;
+  doubled.faces.conservativeResize(doubled.faceCount() + 1, 3);
+  doubled.faces.row(doubled.faceCount() - 1) = doubled.faces.row(3);
+  EXPECT_EQ(msk::closedMeshProblem(doubled), "edge " + std::to_string(m.faces(3, 0)) + "-" +
+                                                 std::to_string(m.faces(3, 1)) +
+                                                 " is used twice in the same direction (non-manifold or inconsistently "
+                                                 "oriented)");
   msk::TriangleMesh empty;
   EXPECT_NE(msk::closedMeshProblem(empty).find("empty"), std::string::npos);
   msk::TriangleMesh nan = m;
